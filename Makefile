@@ -1,0 +1,55 @@
+# Kinetre: `make studio` runs the live studio, `make test` sets up and runs every test, `make bench` prints JSON.
+SHELL := /bin/bash
+VENV ?= .venv
+PY := $(VENV)/bin/python
+PIP := $(VENV)/bin/pip
+STAMP := $(VENV)/.kinetre-installed
+WEB_STAMP := web/node_modules/.kinetre-installed
+STATIC := src/kinetre/studio/static/index.html
+APT_STAMP := /var/lib/kinetre-apt-$(shell echo $(APT_PACKAGES) | md5sum | cut -c1-8)
+# Debian packages: CHOLMOD headers (scikit-sparse), the browser for tests, ffmpeg for video,
+# festival voices for speech fixtures, nats-server for the network layer.
+APT_PACKAGES := libsuitesparse-dev build-essential chromium ffmpeg festival festvox-kallpc16k festvox-us-slt-hts sox espeak-ng nats-server
+export NUMBA_CACHE_DIR := $(CURDIR)/.cache/numba
+
+.PHONY: setup studio test bench web apt python clean
+
+apt: $(APT_STAMP)
+$(APT_STAMP):
+	@if [ "$$(id -u)" = 0 ] && command -v apt-get >/dev/null; then \
+	  missing=$$(for p in $(APT_PACKAGES); do dpkg -s $$p >/dev/null 2>&1 || echo $$p; done); \
+	  if [ -n "$$missing" ]; then apt-get update -q && DEBIAN_FRONTEND=noninteractive apt-get install -y -q $$missing; fi; \
+	  touch $@; \
+	else echo "not root: install these Debian packages yourself: $(APT_PACKAGES)"; fi
+
+python: $(STAMP)
+$(STAMP): pyproject.toml $(APT_STAMP)
+	test -x $(PY) || python3 -m venv $(VENV)
+	$(PIP) install -q --upgrade pip
+	# scikit-sparse 0.4.16 builds against Debian's CHOLMOD; it needs numpy and Cython in the build env
+	$(PIP) install -q 'numpy<2' cython wheel 'setuptools<70'
+	$(PIP) install -q --no-build-isolation scikit-sparse==0.4.16
+	$(PIP) install -q -e '.[test,capture,voice,scan]'
+	touch $@
+
+web: $(STATIC)
+$(STATIC): $(WEB_STAMP) $(shell find web/src web/index.html web/vite.config.ts -type f 2>/dev/null)
+	cd web && npm run build
+
+$(WEB_STAMP): web/package.json
+	cd web && npm ci --no-audit --no-fund
+	touch $@
+
+setup: python web
+
+studio: setup
+	$(VENV)/bin/kinetre studio
+
+test: setup
+	$(PY) -m pytest -q tests
+
+bench: setup
+	OMP_NUM_THREADS=1 NUMBA_NUM_THREADS=1 $(PY) benchmarks/run.py
+
+clean:
+	rm -rf $(VENV) web/node_modules .cache

@@ -1,0 +1,93 @@
+"""Gauss-Newton with Levenberg-Marquardt damping on the Eq. 8 energy, warm-started per frame.
+
+Each iteration solves (JᵀJ + λ diag(JᵀJ)) δ = −Jᵀr with the factorisation's symbolic analysis reused.
+A step that does not lower E is rejected and λ grows, so E never increases. The loop stops after
+`max_iterations` factorisations, or as soon as an accepted step's decrease is negligible — checked
+before factoring again, so no factorisation is spent only to confirm convergence.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .factor import NotPositiveDefinite, ReusedCholesky
+from .normal_equations import NormalEquations
+
+
+@dataclass(frozen=True)
+class SolverSettings:
+    max_iterations: int = 10
+    relative_tolerance: float = 1e-6   # stop when an accepted step lowers E by less than this fraction
+    initial_damping: float = 1e-6
+    max_damping: float = 1e8
+
+
+@dataclass(frozen=True)
+class SolveReport:
+    x: np.ndarray          # (N, 12)
+    energy: float
+    iterations: int        # factorisations done
+    accepted: int          # accepted steps
+    energies: tuple        # E after each accepted step, starting with the initial E
+
+
+class GaussNewton:
+    """Solver state for one rig: the normal-equation pattern and its reused symbolic factor."""
+
+    def __init__(self, system: NormalEquations, settings: SolverSettings = SolverSettings(),
+                 backend: str | None = None):
+        self.system = system
+        self.settings = settings
+        self.factor = ReusedCholesky(system.matrix(np.ones(len(system.indices))), backend)
+        self._active_key = None
+        self._linear_data = None
+
+    def _linear(self, active: np.ndarray) -> np.ndarray:
+        key = active.tobytes()
+        if key != self._active_key:
+            self._linear_data = self.system.const_data + self.system.constraint_data(active)
+            self._active_key = key
+        return self._linear_data
+
+    def solve(self, x0: np.ndarray, targets: np.ndarray, active: np.ndarray) -> SolveReport:
+        s = self.settings
+        sysm = self.system
+        linear = self._linear(active)
+        x = x0.copy()
+        parts = sysm.residuals(x, targets, active)
+        energy = sysm.energy(parts)
+        energies = [energy]
+        lam = s.initial_damping
+        factorisations = accepted = 0
+        while factorisations < s.max_iterations and energy > 0.0:
+            data, grad = sysm.system(x, parts, linear, active)
+            diag = data[sysm.diag_pos]
+            floor = 1e-9 * max(diag.max(), 1e-300)
+            stepped = False
+            while factorisations < s.max_iterations:
+                damped = data.copy()
+                damped[sysm.diag_pos] += lam * np.maximum(diag, floor)
+                factorisations += 1
+                try:
+                    delta = self.factor.solve(sysm.matrix(damped), -grad)
+                except NotPositiveDefinite:
+                    lam = min(max(lam * 10.0, 1e-6), s.max_damping)
+                    continue
+                x_new = x + delta.reshape(x.shape)
+                parts_new = sysm.residuals(x_new, targets, active)
+                e_new = sysm.energy(parts_new)
+                if np.isfinite(e_new) and e_new < energy:
+                    decrease = energy - e_new
+                    x, parts, energy = x_new, parts_new, e_new
+                    energies.append(energy)
+                    accepted += 1
+                    lam = max(lam / 10.0, 1e-12)
+                    stepped = True
+                    break
+                lam *= 10.0
+                if lam > s.max_damping:
+                    break
+            if not stepped or decrease <= s.relative_tolerance * energies[-2]:
+                break
+        return SolveReport(x, energy, factorisations, accepted, tuple(energies))

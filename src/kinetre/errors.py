@@ -1,0 +1,33 @@
+"""Errors Kinetre raises on bad input: each names the file or argument and the problem."""
+
+
+class KinetreError(Exception):
+    """Base class: the command line prints the message on one line and exits with status 2."""
+
+
+class BadMeshError(KinetreError):
+    """A mesh file is missing, unreadable, empty, a point cloud, non-finite or of zero area."""
+
+
+class BadGraphError(KinetreError):
+    """A deformation graph cannot be built with the requested parameters."""
+
+
+class BadSkeletonError(KinetreError):
+    """A skeleton frame has the wrong shape, unknown joints or an unknown subset name."""
+
+
+class AttachError(KinetreError):
+    """Nothing of the skeleton lies near the mesh, so nothing can be possessed."""
+
+
+class BadMotionError(KinetreError):
+    """A motion file (BVH, recorded take, video) is corrupt or holds no usable motion."""
+
+
+class BadScanError(KinetreError):
+    """RGB-D frames or intrinsics are missing, mismatched or unusable."""
+
+
+class ExportError(KinetreError):
+    """An export target cannot be written."""

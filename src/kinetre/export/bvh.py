@@ -1,0 +1,262 @@
+"""A skeleton take (joint positions per frame) as a BVH file in the skeleton's own hierarchy (Kinect-20 for
+tracked takes).
+
+BVH stores a rest skeleton (per-joint OFFSET from the parent) and per frame a local rotation per joint.
+Tracked joint positions are not a rigid skeleton: bone lengths change from frame to frame, and the angle
+between the children of one joint (HipCenter → Spine/HipLeft/HipRight) changes too, which no rotation can
+follow. So every joint gets position channels as well (BVH allows them on any joint; like Blender and
+bvhio we read a joint's position channels as its full local translation, *replacing* its OFFSET), and the
+file reproduces each tracked position to the precision of the printed numbers (1 µm, 1e-6 degree).
+
+The rotations are still meaningful for a viewer that ignores non-root position channels: each joint's world
+rotation turns its rest child bones onto the current ones (Kabsch over its tracked children; the minimal
+swing from the parent's rotation for a single child; the parent's rotation for a leaf). Read that way the
+residual is the bone-length and inter-child-angle change of the take (`rotation_residuals` measures it);
+`joint_positions=False` writes that classic root-only layout.
+
+Rest skeleton: OFFSETs are the bone vectors of the first frame where all joints are tracked (per bone,
+the first frame where both ends are; 5 cm up where never). The root's OFFSET is zero and its position
+channels are absolute, so readers that add OFFSET to root positions and readers that replace it agree.
+Untracked joints are filled by carrying their rest bone with the parent's rotation (a lost root holds its
+last tracked position), so every number in the file is finite.
+"""
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+from ..errors import ExportError
+from ..skeleton.models import Skeleton
+
+_ORDER = "ZXY"                 # rotation channel order written: Zrotation Xrotation Yrotation (intrinsic)
+_UNTRACKED_OFFSET = np.array([0.0, 0.05, 0.0])
+
+
+def write_bvh(path, frames: list[Skeleton], fps: float, *, joint_positions: bool = True) -> None:
+    """Write a skeleton take as BVH (metres, +Y up, the frames' own hierarchy, e.g. Kinect-20).
+
+    Parameters
+    ----------
+    path : str or Path
+        Output .bvh file.
+    frames : list of Skeleton
+        The take; all frames share one SkeletonModel with a single root; at least one frame must track
+        at least one joint.
+    fps : float
+        Frames per second (Frame Time = 1 / fps).
+    joint_positions : bool
+        True (default): position channels on every joint, exact positions on re-reading. False: position
+        channels on the root only (rotations carry the pose; bones keep their rest lengths).
+
+    Raises
+    ------
+    ExportError
+        Empty take, mixed skeleton models, several roots, nothing tracked, bad fps, unwritable path.
+    """
+    path = Path(path)
+    model = _check(path, frames, fps)
+    world_pos, world_rot, offsets = solve_rotations(frames)
+    parents = np.array(model.parents)
+    root = int(np.flatnonzero(parents < 0)[0])
+
+    f, j = world_pos.shape[:2]
+    channels = np.zeros((f, j, 6))           # per joint: position xyz, then Euler angles in _ORDER (degrees)
+    for c in range(j):
+        p = parents[c]
+        if p < 0:
+            local_rot, local_pos = world_rot[:, c], world_pos[:, c]
+        else:
+            parent_t = world_rot[:, p].transpose(0, 2, 1)
+            local_rot = parent_t @ world_rot[:, c]
+            local_pos = np.einsum("fij,fj->fi", parent_t, world_pos[:, c] - world_pos[:, p])
+        channels[:, c, :3] = local_pos
+        channels[:, c, 3:] = _euler_degrees(local_rot)
+
+    children = [[c for c in range(j) if parents[c] == i] for i in range(j)]
+    lines = ["HIERARCHY"]
+
+    def emit(i: int, depth: int):
+        pad = "\t" * depth
+        lines.append(f"{pad}{'ROOT' if i == root else 'JOINT'} {model.joints[i]}")
+        lines.append(f"{pad}{{")
+        offset = np.zeros(3) if i == root else offsets[i]
+        lines.append(f"{pad}\tOFFSET {_num(offset)}")
+        rot_names = " ".join(f"{a}rotation" for a in _ORDER)
+        if i == root or joint_positions:
+            lines.append(f"{pad}\tCHANNELS 6 Xposition Yposition Zposition {rot_names}")
+        else:
+            lines.append(f"{pad}\tCHANNELS 3 {rot_names}")
+        for c in children[i]:
+            emit(c, depth + 1)
+        if not children[i]:
+            # a short tip along the incoming bone, so viewers draw the last bone with a direction
+            tip = 0.25 * offsets[i] if i != root else np.array([0.0, 0.1, 0.0])
+            lines.extend([f"{pad}\tEnd Site", f"{pad}\t{{", f"{pad}\t\tOFFSET {_num(tip)}", f"{pad}\t}}"])
+        lines.append(f"{pad}}}")
+
+    emit(root, 0)
+    order = _depth_first(root, children)
+    lines += ["MOTION", f"Frames: {f}", f"Frame Time: {1.0 / fps:.10f}"]
+    for k in range(f):
+        row = []
+        for i in order:
+            if i == root or joint_positions:
+                row.append(_num(channels[k, i, :3]))
+            row.append(_num(channels[k, i, 3:]))
+        lines.append(" ".join(row))
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        path.write_text("\n".join(lines) + "\n")
+    except OSError as err:
+        raise ExportError(f"{path}: cannot write the BVH file ({err.strerror or err})") from None
+
+
+def solve_rotations(frames: list[Skeleton]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Fill untracked joints and fit a world rotation per joint and frame.
+
+    Returns
+    -------
+    positions : (F, J, 3) float64
+        Tracked positions unchanged; untracked ones filled from the parent (see the module docstring).
+    rotations : (F, J, 3, 3) float64
+        World rotation of each joint, identity in the rest skeleton.
+    offsets : (J, 3) float64
+        Rest bone vector (child minus parent) per joint; zero for the root.
+    """
+    model = frames[0].model
+    parents = np.array(model.parents)
+    pos = np.stack([s.positions for s in frames])
+    tracked = np.stack([s.tracked for s in frames])
+    f, j = tracked.shape
+    offsets = _rest_offsets(pos, tracked, parents)
+    children = [[c for c in range(j) if parents[c] == i] for i in range(j)]
+    root = int(np.flatnonzero(parents < 0)[0])
+    order = _depth_first(root, children)
+
+    out_pos = np.zeros((f, j, 3))
+    out_rot = np.tile(np.eye(3), (f, j, 1, 1))
+    first_root = pos[np.argmax(tracked[:, root]), root] if tracked[:, root].any() else np.zeros(3)
+    last_root = first_root
+    for k in range(f):
+        for i in order:
+            p = parents[i]
+            if p < 0:
+                out_pos[k, i] = pos[k, i] if tracked[k, i] else last_root
+                last_root = out_pos[k, i]
+                parent_rot = np.eye(3)
+            else:
+                parent_rot = out_rot[k, p]
+                out_pos[k, i] = pos[k, i] if tracked[k, i] else out_pos[k, p] + parent_rot @ offsets[i]
+            rest = [offsets[c] for c in children[i] if tracked[k, c]]
+            now = [pos[k, c] - out_pos[k, i] for c in children[i] if tracked[k, c]]
+            out_rot[k, i] = _fit_rotation(parent_rot, rest, now)
+    return out_pos, out_rot, offsets
+
+
+def rotation_residuals(frames: list[Skeleton]) -> np.ndarray:
+    """(F, J) distance between each tracked joint and where the rotations alone (rest OFFSETs, root
+    position) put it: the error of a reader that ignores non-root position channels; NaN where untracked."""
+    model = frames[0].model
+    parents = np.array(model.parents)
+    pos, rot, offsets = solve_rotations(frames)
+    children = [[c for c in range(len(parents)) if parents[c] == i] for i in range(len(parents))]
+    root = int(np.flatnonzero(parents < 0)[0])
+    rigid = np.zeros_like(pos)
+    for i in _depth_first(root, children):
+        p = parents[i]
+        rigid[:, i] = pos[:, i] if p < 0 else rigid[:, p] + np.einsum("fij,j->fi", rot[:, p], offsets[i])
+    tracked = np.stack([s.tracked for s in frames])
+    return np.where(tracked, np.linalg.norm(rigid - np.stack([s.positions for s in frames]), axis=2), np.nan)
+
+
+def _check(path, frames, fps):
+    if not frames:
+        raise ExportError(f"{path}: the take has no frames to export")
+    if not (isinstance(fps, (int, float)) and math.isfinite(fps) and fps > 0):
+        raise ExportError(f"{path}: fps must be a positive number, got {fps}")
+    model = frames[0].model
+    for k, s in enumerate(frames):
+        if s.model != model:
+            raise ExportError(f"{path}: frame {k} has skeleton {s.model.name!r}, frame 0 has {model.name!r}")
+    roots = [model.joints[i] for i, p in enumerate(model.parents) if p < 0]
+    if len(roots) != 1:
+        raise ExportError(f"{path}: BVH needs one root joint, skeleton {model.name!r} has {roots}")
+    if not any(s.tracked.any() for s in frames):
+        raise ExportError(f"{path}: no frame of the take tracks any joint")
+    return model
+
+
+def _rest_offsets(pos, tracked, parents):
+    """Bone vectors from the first fully tracked frame (per bone: first frame with both ends tracked)."""
+    j = len(parents)
+    offsets = np.zeros((j, 3))
+    full = np.flatnonzero(tracked.all(axis=1))
+    for c in range(j):
+        p = parents[c]
+        if p < 0:
+            continue
+        both = np.flatnonzero(tracked[:, c] & tracked[:, p])
+        if full.size:
+            k = full[0]
+        elif both.size:
+            k = both[0]
+        else:
+            offsets[c] = _UNTRACKED_OFFSET
+            continue
+        offsets[c] = pos[k, c] - pos[k, p]
+    return offsets
+
+
+def _fit_rotation(parent_rot, rest, now):
+    """World rotation taking the rest child bones `rest` onto the current ones `now` (lists of (3,))."""
+    if not rest:
+        return parent_rot
+    a, b = np.array(rest), np.array(now)
+    a_n = a / np.maximum(np.linalg.norm(a, axis=1, keepdims=True), 1e-12)
+    b_n = b / np.maximum(np.linalg.norm(b, axis=1, keepdims=True), 1e-12)
+    if len(rest) >= 2 and np.linalg.matrix_rank(a_n, tol=1e-3) >= 2 and np.linalg.matrix_rank(b_n, tol=1e-3) >= 2:
+        rot, _ = Rotation.align_vectors(b_n, a_n)      # Kabsch: rot @ a_n ≈ b_n
+        return rot.as_matrix()
+    # one usable child: the minimal swing from where the parent's rotation carries it
+    swing = _min_rotation(parent_rot @ a_n[0], b_n[0])
+    return swing @ parent_rot
+
+
+def _min_rotation(u, v):
+    """The smallest rotation turning unit vector u onto unit vector v."""
+    axis = np.cross(u, v)
+    s, c = np.linalg.norm(axis), float(np.clip(u @ v, -1.0, 1.0))
+    if s < 1e-12:
+        if c > 0:
+            return np.eye(3)
+        # opposite: half a turn about any axis perpendicular to u
+        perp = np.cross(u, [1.0, 0.0, 0.0])
+        if np.linalg.norm(perp) < 1e-6:
+            perp = np.cross(u, [0.0, 1.0, 0.0])
+        return Rotation.from_rotvec(np.pi * perp / np.linalg.norm(perp)).as_matrix()
+    return Rotation.from_rotvec(axis / s * math.atan2(s, c)).as_matrix()
+
+
+def _euler_degrees(rotations):
+    """(F, 3, 3) -> (F, 3) intrinsic Euler angles in _ORDER, degrees (the BVH channel values)."""
+    import warnings
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", UserWarning)   # gimbal lock: the angles still rebuild the matrix
+        return Rotation.from_matrix(rotations).as_euler(_ORDER, degrees=True)
+
+
+def _depth_first(root, children):
+    order, stack = [], [root]
+    while stack:
+        i = stack.pop()
+        order.append(i)
+        stack.extend(reversed(children[i]))
+    return order
+
+
+def _num(values) -> str:
+    return " ".join(f"{v:.6f}" for v in values)

@@ -1,0 +1,257 @@
+"""A take as a rigged, animated glTF 2.0 file (SPEC §8): graph nodes become joints, one animation.
+
+The static part (positions, normals, UVs, vertex colours, material and its embedded image) is written by
+trimesh's glTF exporter; only the skin and the animation are added here, with pygltflib:
+
+* every graph node j is a joint node with rest translation g_j and inverse bind matrix translate(-g_j);
+* per frame its translation is g_j + t_j and its rotation the polar-decomposition rotation Q_j of R_j, so
+  a glTF player computes  v' = sum_j w_j (Q_j (v - g_j) + g_j + t_j),  which differs from our own skinning
+  (Eq. 2, with R_j) only by the small non-rotation part of R_j (SPEC §8: < 0.1 % of the bbox diagonal);
+* JOINTS_0 / WEIGHTS_0 are the graph's 4 nodes and weights per vertex (SPEC §1.4);
+* one animation, one LINEAR sampler pair (translation, rotation) per joint, keyed at every frame.
+"""
+from __future__ import annotations
+
+import base64
+from pathlib import Path
+
+import numpy as np
+import pygltflib as gl
+import trimesh
+
+from ..deform.pose import GraphPose
+from ..errors import ExportError
+from ..graph.graph import DeformationGraph
+from ..mesh.mesh import Mesh
+
+_ALIGN = 4  # glTF: every bufferView starts on a 4-byte boundary
+
+
+def write_gltf(path, mesh: Mesh, graph: DeformationGraph, poses: list[GraphPose], fps: float,
+               name: str = "take") -> None:
+    """Write `mesh`, rigged by `graph` and animated by `poses`, as .glb (binary) or .gltf (one JSON file).
+
+    Parameters
+    ----------
+    path : str or Path
+        Output file; the extension picks the container (".glb" or ".gltf", the latter with its buffer
+        embedded as a data URI so it is a single file).
+    mesh : Mesh
+        The mesh as loaded; its UVs, normals, vertex colours and material are written where present.
+    graph : DeformationGraph
+        Graph built on `mesh` (vertex_nodes / vertex_weights have one row per mesh vertex).
+    poses : list of GraphPose
+        One pose per frame (N rotations (N, 3, 3) and translations (N, 3) each); at least one.
+    fps : float
+        Frames per second of the take: frame k is keyed at time k / fps.
+    name : str
+        Name of the animation (and prefix of the mesh and joint names).
+
+    Raises
+    ------
+    ExportError
+        Unknown extension, empty take, mismatched sizes, non-finite poses, or an unwritable path.
+    """
+    path = Path(path)
+    ext = path.suffix.lower()
+    if ext not in (".glb", ".gltf"):
+        raise ExportError(f"{path}: a glTF file must end in .glb or .gltf, got {ext or 'no extension'!r}")
+    rotations, translations = _check_take(path, mesh, graph, poses, fps)
+
+    doc = _static_document(path, mesh, name)
+    blob = bytearray(doc.binary_blob() or b"")
+    if mesh.uvs is not None and mesh.colors is not None:
+        # trimesh's TextureVisuals carry no colours: add COLOR_0 ourselves (normalised unsigned bytes)
+        doc.meshes[0].primitives[0].attributes.COLOR_0 = _append(
+            doc, blob, np.asarray(mesh.colors, dtype=np.uint8), gl.VEC4, gl.UNSIGNED_BYTE, normalized=True,
+            target=gl.ARRAY_BUFFER)
+    _add_skin_and_animation(doc, blob, graph, rotations, translations, fps, name)
+    doc.buffers = [gl.Buffer(byteLength=len(blob))]
+    doc.asset = gl.Asset(version="2.0", generator="Kinetre (embedded deformation export, trimesh + pygltflib)")
+
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        if ext == ".glb":
+            doc.set_binary_blob(bytes(blob))
+            doc.save_binary(str(path))
+        else:
+            doc.buffers[0].uri = "data:application/octet-stream;base64," + base64.b64encode(blob).decode()
+            doc.save_json(str(path))
+    except OSError as err:
+        raise ExportError(f"{path}: cannot write the glTF file ({err.strerror or err})") from None
+
+
+def polar_rotations(matrices: np.ndarray) -> np.ndarray:
+    """The rotation factor Q of the polar decomposition M = Q S of each matrix.
+
+    Parameters
+    ----------
+    matrices : (..., 3, 3) float64
+        Near-rotations R_j.
+
+    Returns
+    -------
+    (..., 3, 3) float64
+        Proper rotations (det +1) closest to each matrix in the Frobenius norm (Q = U V^T from the SVD,
+        with the last singular direction flipped where det(U V^T) < 0).
+
+    >>> q = polar_rotations(np.diag([2.0, 1.0, 0.5])[None])
+    >>> bool(np.allclose(q, np.eye(3)))
+    True
+    """
+    u, _, vt = np.linalg.svd(matrices)
+    d = np.sign(np.linalg.det(u @ vt))
+    d[d == 0] = 1.0
+    u = u.copy()
+    u[..., :, 2] *= d[..., None]
+    return u @ vt
+
+
+def rotation_quaternions(rotations: np.ndarray) -> np.ndarray:
+    """(F, N, 3, 3) rotations -> (F, N, 4) float32 unit quaternions (x, y, z, w), sign-continuous in time.
+
+    Consecutive keys of one joint are kept in the same hemisphere (q and -q are the same rotation), so a
+    player's slerp between keys never takes the long way round.
+    """
+    from scipy.spatial.transform import Rotation
+
+    f, n = rotations.shape[:2]
+    q = Rotation.from_matrix(rotations.reshape(-1, 3, 3)).as_quat().reshape(f, n, 4)
+    for k in range(1, f):
+        flip = np.einsum("nd,nd->n", q[k], q[k - 1]) < 0
+        q[k, flip] *= -1.0
+    return q.astype(np.float32)
+
+
+def _check_take(path, mesh, graph, poses, fps):
+    """Validate sizes and values; return the stacked (F, N, 3, 3) rotations and (F, N, 3) translations."""
+    if not poses:
+        raise ExportError(f"{path}: the take has no frames to export")
+    if not np.isfinite(fps) or fps <= 0:
+        raise ExportError(f"{path}: fps must be a positive number, got {fps}")
+    v, n = mesh.vertices.shape[0], graph.node_count
+    if graph.vertex_nodes.shape != (v, 4) or graph.vertex_weights.shape != (v, 4):
+        raise ExportError(f"{path}: the graph skins {graph.vertex_nodes.shape[0]} vertices but the mesh has {v}")
+    if n >= 65536:
+        raise ExportError(f"{path}: {n} graph nodes; glTF joints are limited to 65535")
+    rotations = np.stack([np.asarray(p.rotations, dtype=np.float64) for p in poses])
+    translations = np.stack([np.asarray(p.translations, dtype=np.float64) for p in poses])
+    if rotations.shape != (len(poses), n, 3, 3) or translations.shape != (len(poses), n, 3):
+        raise ExportError(f"{path}: poses must hold ({n}, 3, 3) rotations and ({n}, 3) translations, "
+                          f"got {rotations.shape[1:]} and {translations.shape[1:]}")
+    bad = ~(np.isfinite(rotations).all(axis=(1, 2, 3)) & np.isfinite(translations).all(axis=(1, 2)))
+    if bad.any():
+        raise ExportError(f"{path}: pose of frame {int(np.argmax(bad))} is not finite")
+    return rotations, translations
+
+
+def _static_document(path, mesh: Mesh, name: str) -> gl.GLTF2:
+    """The mesh alone (no nodes kept), exported by trimesh and parsed back by pygltflib."""
+    visual = None
+    if mesh.uvs is not None:
+        material = mesh.material if mesh.material is not None else trimesh.visual.material.PBRMaterial(
+            baseColorFactor=[200, 200, 200, 255])
+        visual = trimesh.visual.TextureVisuals(uv=np.asarray(mesh.uvs, dtype=np.float64), material=material)
+    elif mesh.colors is not None:
+        visual = trimesh.visual.ColorVisuals(vertex_colors=np.asarray(mesh.colors, dtype=np.uint8))
+    elif mesh.material is not None:
+        # a material without UVs: keep its colour factors, drop any image (it could not be mapped)
+        pbr = mesh.material.to_pbr() if hasattr(mesh.material, "to_pbr") else mesh.material
+        factor = getattr(pbr, "baseColorFactor", None)
+        visual = trimesh.visual.TextureVisuals(material=trimesh.visual.material.PBRMaterial(
+            baseColorFactor=factor if factor is not None else [200, 200, 200, 255],
+            metallicFactor=getattr(pbr, "metallicFactor", None), roughnessFactor=getattr(pbr, "roughnessFactor", None)))
+    static = trimesh.Trimesh(vertices=np.asarray(mesh.vertices, dtype=np.float64),
+                             faces=np.asarray(mesh.faces, dtype=np.int64),
+                             vertex_normals=np.asarray(mesh.normals, dtype=np.float64), visual=visual,
+                             process=False, validate=False)
+    try:
+        doc = gl.GLTF2.load_from_bytes(static.export(file_type="glb", include_normals=True))
+    except Exception as err:  # trimesh's exporter raises many kinds (bad image, bad material)
+        raise ExportError(f"{path}: cannot encode the mesh as glTF ({type(err).__name__}: {err})") from None
+    if len(doc.meshes) != 1 or len(doc.meshes[0].primitives) != 1:
+        raise ExportError(f"{path}: expected one mesh primitive from the exporter, got {len(doc.meshes)} meshes")
+    prim = doc.meshes[0].primitives[0]
+    if doc.accessors[prim.attributes.POSITION].count != mesh.vertices.shape[0]:
+        raise ExportError(f"{path}: the exporter changed the vertex count, so the skin would not match")
+    doc.meshes[0].name = name
+    doc.nodes, doc.scenes, doc.scene = [], [], 0
+    return doc
+
+
+def _append(doc: gl.GLTF2, blob: bytearray, array: np.ndarray, gltf_type: str, component: int,
+            normalized: bool = False, minmax: bool = False, target: int | None = None) -> int:
+    """Append `array` to the buffer as a new bufferView + accessor; return the accessor index."""
+    blob.extend(b"\0" * (-len(blob) % _ALIGN))
+    data = np.ascontiguousarray(array).tobytes()
+    doc.bufferViews.append(gl.BufferView(buffer=0, byteOffset=len(blob), byteLength=len(data), target=target))
+    blob.extend(data)
+    acc = gl.Accessor(bufferView=len(doc.bufferViews) - 1, byteOffset=0, componentType=component,
+                      normalized=normalized or None, count=int(array.shape[0]), type=gltf_type)
+    if minmax:
+        flat = array.reshape(array.shape[0], -1)
+        acc.min = [float(x) for x in flat.min(axis=0)]
+        acc.max = [float(x) for x in flat.max(axis=0)]
+    doc.accessors.append(acc)
+    return len(doc.accessors) - 1
+
+
+def skin_weights(graph: DeformationGraph) -> tuple[np.ndarray, np.ndarray]:
+    """glTF-ready JOINTS_0 (V, 4) uint16/uint8 and WEIGHTS_0 (V, 4) float32 from the graph.
+
+    Weights are renormalised in float32 so each row sums to 1 as closely as float32 allows (the
+    validator's tolerance), and a joint slot with zero weight is pointed at the row's first joint, so no
+    joint index repeats with a non-zero weight.
+    """
+    w = np.clip(np.asarray(graph.vertex_weights, dtype=np.float64), 0.0, None)
+    total = w.sum(axis=1, keepdims=True)
+    if (total <= 0).any() or not np.isfinite(total).all():
+        raise ExportError(f"graph: {int((total <= 0).sum())} vertices have no positive skinning weight")
+    w32 = (w / total).astype(np.float32)
+    # put the float32 rounding error on the largest weight
+    big = np.argmax(w32, axis=1)
+    rows = np.arange(w32.shape[0])
+    w32[rows, big] = 0.0
+    w32[rows, big] = np.float32(1.0) - w32.sum(axis=1, dtype=np.float32)
+    j = np.asarray(graph.vertex_nodes, dtype=np.int64).copy()
+    j[w32 == 0] = j[rows, big][:, None].repeat(4, axis=1)[w32 == 0]
+    dtype = np.uint8 if graph.node_count < 256 else np.uint16
+    return j.astype(dtype), w32
+
+
+def _add_skin_and_animation(doc, blob, graph, rotations, translations, fps, name):
+    f, n = translations.shape[:2]
+    prim = doc.meshes[0].primitives[0]
+    joints, weights = skin_weights(graph)
+    prim.attributes.JOINTS_0 = _append(doc, blob, joints, gl.VEC4,
+                                       gl.UNSIGNED_BYTE if joints.dtype == np.uint8 else gl.UNSIGNED_SHORT,
+                                       target=gl.ARRAY_BUFFER)
+    prim.attributes.WEIGHTS_0 = _append(doc, blob, weights, gl.VEC4, gl.FLOAT, target=gl.ARRAY_BUFFER)
+
+    g = np.asarray(graph.nodes, dtype=np.float64)
+    # node 0: the skinned mesh (a root without transform, as glTF requires for skinned meshes)
+    # node 1: the rig root, parent of every joint, so the joints share a common root
+    # nodes 2..N+1: one joint per graph node, at rest translated to g_j
+    doc.nodes = [gl.Node(name=name, mesh=0, skin=0),
+                 gl.Node(name=f"{name}_graph", children=list(range(2, n + 2)))]
+    doc.nodes += [gl.Node(name=f"node_{j}", translation=[float(x) for x in g[j]]) for j in range(n)]
+    inverse_bind = np.tile(np.eye(4, dtype=np.float32), (n, 1, 1))
+    inverse_bind[:, :3, 3] = -g
+    # glTF matrices are column-major: store the transpose of each row-major matrix
+    ibm = _append(doc, blob, inverse_bind.transpose(0, 2, 1).reshape(n, 16), gl.MAT4, gl.FLOAT)
+    doc.skins = [gl.Skin(name=f"{name}_skin", joints=list(range(2, n + 2)), skeleton=1, inverseBindMatrices=ibm)]
+    doc.scenes = [gl.Scene(name=name, nodes=[0, 1])]
+
+    times = (np.arange(f, dtype=np.float64) / fps).astype(np.float32)
+    time_acc = _append(doc, blob, times, gl.SCALAR, gl.FLOAT, minmax=True)
+    position = (g[None] + translations).astype(np.float32)              # (F, N, 3)
+    quats = rotation_quaternions(polar_rotations(rotations))              # (F, N, 4)
+    samplers, channels = [], []
+    for j in range(n):
+        t_acc = _append(doc, blob, position[:, j], gl.VEC3, gl.FLOAT)
+        r_acc = _append(doc, blob, quats[:, j], gl.VEC4, gl.FLOAT)
+        for acc, prop in ((t_acc, "translation"), (r_acc, "rotation")):
+            samplers.append(gl.AnimationSampler(input=time_acc, output=acc, interpolation="LINEAR"))
+            channels.append(gl.AnimationChannel(sampler=len(samplers) - 1,
+                                                target=gl.AnimationChannelTarget(node=j + 2, path=prop)))
+    doc.animations = [gl.Animation(name=name, samplers=samplers, channels=channels)]

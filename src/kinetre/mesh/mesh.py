@@ -1,0 +1,59 @@
+"""The `Mesh` dataclass: a cleaned triangle mesh, the input of every later stage."""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+
+@dataclass(frozen=True, eq=False)
+class Mesh:
+    """A triangle mesh after import and cleanup.
+
+    Attributes
+    ----------
+    vertices : (V, 3) float64
+        Positions in the file's own units. Vertices are welded by position except across UV seams,
+        where the copies keep their own texture coordinates (as a glTF player needs them).
+    faces : (F, 3) int32
+        Triangles, indices into `vertices`; no degenerate or duplicate faces.
+    normals : (V, 3) float64
+        Unit area-weighted vertex normals (seam copies share the welded normal).
+    uvs : (V, 2) float32 or None
+        Texture coordinates where the input had them.
+    colors : (V, 4) uint8 or None
+        Vertex colours where the input had them.
+    material : object or None
+        The trimesh material of the input (kept for glTF export), or None.
+    source : str
+        The path the mesh was read from ("" when built in memory).
+    """
+
+    vertices: np.ndarray
+    faces: np.ndarray
+    normals: np.ndarray
+    uvs: np.ndarray | None = None
+    colors: np.ndarray | None = None
+    material: object | None = field(default=None, repr=False)
+    source: str = ""
+
+    @property
+    def bounds(self) -> np.ndarray:
+        """(2, 3) float64: min and max corners."""
+        return np.array([self.vertices.min(axis=0), self.vertices.max(axis=0)])
+
+    @property
+    def diagonal(self) -> float:
+        """Length of the bounding-box diagonal."""
+        lo, hi = self.bounds
+        return float(np.linalg.norm(hi - lo))
+
+    @property
+    def face_areas(self) -> np.ndarray:
+        """(F,) float64 triangle areas."""
+        v = self.vertices[self.faces]
+        return 0.5 * np.linalg.norm(np.cross(v[:, 1] - v[:, 0], v[:, 2] - v[:, 0]), axis=1)
+
+    @property
+    def area(self) -> float:
+        return float(self.face_areas.sum())

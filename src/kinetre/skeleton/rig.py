@@ -1,0 +1,155 @@
+"""`attach` once at "possess", `Rig.solve` per frame (the arap_precomputation / arap_solve shape)."""
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+
+from ..deform.constraints import PointConstraints
+from ..deform.energy import EnergyWeights
+from ..deform.normal_equations import NormalEquations
+from ..deform.pose import GraphPose
+from ..deform.solver import GaussNewton, SolverSettings, SolveReport
+from ..errors import AttachError, BadSkeletonError
+from ..graph.graph import DeformationGraph
+from .attach import SkeletonAttachment, attach_skeleton, constraint_targets
+from .models import Skeleton
+from .subsets import subset_mask
+
+
+def _as_list(skeletons) -> list[Skeleton]:
+    if isinstance(skeletons, Skeleton):
+        return [skeletons]
+    out = list(skeletons)
+    if not all(isinstance(s, Skeleton) for s in out):
+        raise BadSkeletonError("expected a Skeleton or a list of Skeletons")
+    return out
+
+
+class Rig:
+    """A mesh's graph possessed by one or more skeletons.
+
+    Holds what is fixed from the moment of possession (constraints, normal-equation pattern and its
+    symbolic factorisation) and the last good pose for warm starts and tracking loss.
+
+    Attributes
+    ----------
+    graph : DeformationGraph
+    attachments : tuple of SkeletonAttachment, one per skeleton
+    last_report : SolveReport or None, the most recent solve's details
+    """
+
+    def __init__(self, graph: DeformationGraph, attachments: Sequence[SkeletonAttachment],
+                 weights: EnergyWeights = EnergyWeights(), settings: SolverSettings = SolverSettings(),
+                 backend: str | None = None):
+        self.graph = graph
+        self.attachments = tuple(attachments)
+        self.weights = weights
+        self.constraints = PointConstraints.concatenate([a.constraints for a in self.attachments])
+        bridges = graph.edges[graph.bridges]
+        self.system = NormalEquations.build(graph.nodes, graph.edges, bridges, self.constraints, weights)
+        self.solver = GaussNewton(self.system, settings, backend)
+        self._x = np.zeros((graph.node_count, 12))
+        self._x[:, [0, 4, 8]] = 1.0
+        self.last_report: SolveReport | None = None
+
+    @property
+    def constraint_count(self) -> int:
+        return len(self.constraints)
+
+    @property
+    def attached_joints(self) -> list[np.ndarray]:
+        """Per skeleton, the indices of its joints that attached."""
+        return [a.joint[a.joint >= 0] for a in self.attachments]
+
+    @property
+    def nodes_used(self) -> np.ndarray:
+        """Indices of graph nodes that carry at least one constraint."""
+        return np.unique(self.constraints.nodes[self.constraints.weights > 0])
+
+    @property
+    def pose(self) -> GraphPose:
+        """The last good pose (identity before the first solve)."""
+        return self._pose_of(self._x, float("nan"), 0)
+
+    def _pose_of(self, x, energy, iterations) -> GraphPose:
+        return GraphPose(x[:, :9].reshape(-1, 3, 3).copy(), x[:, 9:].copy(), energy, iterations)
+
+    def reset(self) -> None:
+        """Back to the rest pose (identity transforms)."""
+        self._x[:] = 0.0
+        self._x[:, [0, 4, 8]] = 1.0
+
+    def targets(self, skeletons) -> tuple[np.ndarray, np.ndarray]:
+        """Constraint targets (L, 3) and active mask (L,) for the current frame of every skeleton."""
+        frames = _as_list(skeletons)
+        if len(frames) != len(self.attachments):
+            raise BadSkeletonError(f"the rig was attached to {len(self.attachments)} skeleton(s), "
+                                   f"got {len(frames)} frame(s)")
+        qs, oks = [], []
+        for att, frame in zip(self.attachments, frames):
+            if frame.model != att.bind.model:
+                raise BadSkeletonError(f"frame has skeleton model {frame.model.name!r}, "
+                                       f"the rig was attached with {att.bind.model.name!r}")
+            q, ok = constraint_targets(att, frame)
+            qs.append(q), oks.append(ok)
+        if not qs:
+            return np.zeros((0, 3)), np.zeros(0, bool)
+        return np.concatenate(qs), np.concatenate(oks)
+
+    def solve(self, skeletons) -> GraphPose:
+        """Deform the graph so the attached joints and bones follow the current frame(s).
+
+        Warm-starts from the previous pose. Untracked joints and bones drop out of E_con for this
+        frame; with nothing tracked, or a non-finite result, the last good pose is returned.
+        """
+        q, ok = self.targets(skeletons)
+        if not ok.any():
+            return self._pose_of(self._x, float("nan"), 0)
+        report = self.solver.solve(self._x, q, ok.astype(np.float64))
+        self.last_report = report
+        if not np.isfinite(report.x).all():
+            return self._pose_of(self._x, float("nan"), 0)
+        self._x = report.x
+        return self._pose_of(self._x, report.energy, report.iterations)
+
+
+def attach(graph: DeformationGraph, skeletons, subset=None, reach: float = 0.10, bone_radius: float = 0.04,
+           weights: EnergyWeights = EnergyWeights(), settings: SolverSettings = SolverSettings(),
+           backend: str | None = None) -> Rig:
+    """Possess the graph with one or more skeletons in their current (bind) pose.
+
+    Parameters
+    ----------
+    graph : DeformationGraph, in the skeletons' frame and units (metres, +Y up)
+    skeletons : Skeleton or list of Skeleton (two users can drive one horse)
+    subset : joint subset for every skeleton ("left arm", ["HipCenter", "right arm"], None = whole
+        body), or a list with one subset per skeleton
+    reach : attachment distance, 10 cm; bone_radius : bone cylinder radius, 4 cm
+
+    Raises
+    ------
+    AttachError
+        When no joint or bone sample of any skeleton lies within `reach` of the graph.
+    """
+    frames = _as_list(skeletons)
+    if not frames:
+        raise BadSkeletonError("attach needs at least one skeleton")
+    if isinstance(subset, list) and len(subset) == len(frames) and len(frames) > 1 and \
+            all(s is None or isinstance(s, (str, list, tuple)) for s in subset) and \
+            not all(isinstance(s, str) for s in subset):
+        subsets = subset
+    else:
+        subsets = [subset] * len(frames)
+    atts = [attach_skeleton(graph, f, subset_mask(f.model, s), reach, bone_radius)
+            for f, s in zip(frames, subsets)]
+    if sum(len(a.constraints) for a in atts) == 0:
+        tracked = np.concatenate([f.positions[f.tracked] for f in frames])
+        if len(tracked) == 0:
+            raise AttachError("cannot possess: no joint of the skeleton is tracked")
+        from scipy.spatial import cKDTree
+        d, _ = cKDTree(graph.nodes).query(tracked)
+        raise AttachError(
+            f"cannot possess: no joint or bone is within {reach * 100:.0f} cm of the mesh (nearest joint "
+            f"is {d.min():.2f} m away); step into the mesh, move it, or scale it to your height")
+    return Rig(graph, atts, weights, settings, backend)

@@ -1,0 +1,431 @@
+"""The studio server: Starlette routes around one `Scene`, the embedded `Hub` and the built page.
+
+    GET  /                     the page (web/ built into static/)
+    WS   /ws                   capture clients and viewers (protocol.py)
+    GET  /api/state            the scene state (JSON)
+    GET  /api/mesh/{id}        the current mesh with its skinning data (JSON, base64 arrays)
+    POST /api/mesh?name=F      upload a mesh file (OBJ/PLY/STL/GLB…): a job that loads it and builds the graph
+    GET  /api/jobs/{id}        a job's stage, progress fraction and readable error
+    POST /api/voice?client=C   16 kHz mono WAV: recognised offline, "possess"/"release"/subset applied for C
+    POST /api/record/start     start recording a take; /api/record/stop ends it and exports GLB, BVH, stream
+    GET  /api/takes/{id}/{f}   a file of a recorded take
+"""
+from __future__ import annotations
+
+import asyncio
+import base64
+import contextlib
+import itertools
+import json
+import os
+import shutil
+import tempfile
+import threading
+import webbrowser
+from dataclasses import dataclass, field
+from importlib import resources
+from pathlib import Path
+
+import numpy as np
+from starlette.applications import Starlette
+from starlette.requests import Request
+from starlette.responses import FileResponse, JSONResponse, Response
+from starlette.routing import Mount, Route, WebSocketRoute
+from starlette.staticfiles import StaticFiles
+from starlette.websockets import WebSocket, WebSocketDisconnect
+
+from ..errors import KinetreError
+from ..graph.build import build_graph
+from ..mesh.load import load_mesh
+from ..mesh.mesh import Mesh
+from .channels import Frame, Hub
+from .placement import standing_mesh
+from .protocol import ProtocolError, parse_message, parse_skeleton, skeleton_json
+from .scene import SKELETONS, STATE, TRANSFORMS, Scene, check_subset, now_ms, resample
+
+NODES = 128  # graph size for meshes loaded in the studio (the paper's default)
+TAKE_FPS = 30.0
+MAX_UPLOAD = 200 * 1024 * 1024
+SAMPLE_CLIENT = "sample"
+
+
+def data_path(name: str) -> Path:
+    """A file shipped in kinetre/data (the sample mesh and motion)."""
+    return Path(str(resources.files("kinetre") / "data" / name))
+
+
+def static_dir() -> Path:
+    return Path(str(resources.files("kinetre") / "studio" / "static"))
+
+
+def prepare_mesh(path: str, nodes: int = NODES, progress=lambda stage, fraction: None):
+    """Load, stand in metres and build the graph: (Mesh, DeformationGraph). Raises KinetreError."""
+    progress("reading", 0.05)
+    mesh = standing_mesh(load_mesh(path))
+    progress("building graph", 0.3)
+    graph = build_graph(mesh, nodes=nodes, seed=0)
+    progress("ready", 1.0)
+    return mesh, graph
+
+
+def mesh_payload(mesh: Mesh, graph, mesh_id: int, name: str) -> dict:
+    """What the page needs to build a SkinnedMesh: little-endian arrays as base64."""
+    def b64(a, dtype):
+        return base64.b64encode(np.ascontiguousarray(a, dtype=dtype).tobytes()).decode()
+    return {"id": mesh_id, "name": name, "vertexCount": int(len(mesh.vertices)),
+            "nodeCount": graph.node_count,
+            "positions": b64(mesh.vertices, "<f4"), "normals": b64(mesh.normals, "<f4"),
+            "faces": b64(mesh.faces, "<u4"), "skinIndex": b64(graph.vertex_nodes, "<u2"),
+            "skinWeight": b64(graph.vertex_weights, "<f4"), "nodes": b64(graph.nodes, "<f4"),
+            "nodeNormals": b64(graph.normals, "<f4")}
+
+
+@dataclass
+class Job:
+    id: int
+    name: str
+    stage: str = "uploaded"
+    fraction: float = 0.0
+    error: str = ""
+    done: bool = False
+
+
+@dataclass
+class ClientStats:
+    received: int = 0
+    malformed: int = 0
+    last_seq: int = -1
+
+
+@dataclass
+class Studio:
+    """Everything one studio server runs: hub, scene, sample player, upload jobs and takes."""
+
+    hub: Hub
+    scene: Scene
+    player: object | None = None
+    jobs: dict[int, Job] = field(default_factory=dict)
+    takes_dir: Path = field(default_factory=lambda: Path(tempfile.mkdtemp(prefix="kinetre-takes-")))
+    stats: dict[str, ClientStats] = field(default_factory=dict)
+    _ids: itertools.count = field(default_factory=lambda: itertools.count(1))
+    _takes: itertools.count = field(default_factory=lambda: itertools.count(1))
+
+    # --- messages from a client ------------------------------------------------------------------------
+    async def handle(self, client: str, text: str | bytes) -> None:
+        """Apply one client message; malformed ones are answered with an error, never fatal."""
+        stats = self.stats[client]
+        try:
+            msg = parse_message(text)
+            kind = msg["type"]
+            if kind == "skeleton":
+                seq, t, skeleton = parse_skeleton(msg)
+                stats.received += 1
+                stats.last_seq = seq
+                self.hub.publish(Frame(f"kinetre.skeleton.{client}", seq, t,
+                                       skeleton_json(client, seq, t, skeleton)))
+            elif kind == "possess":
+                if self.player is not None and client != SAMPLE_CLIENT:
+                    await self.stop_sample()  # a live user takes over from the sample motion
+                await self.scene.possess(client, check_subset(msg.get("subset")))
+            elif kind == "release":
+                await self.scene.release(client)
+            elif kind == "subset":
+                await self.scene.set_subset(client, check_subset(msg.get("subset")))
+            elif kind == "place":
+                pos = msg.get("position", [0, 0, 0])
+                if not isinstance(pos, list):
+                    raise ProtocolError("position must be a list of 3 numbers")
+                self.scene.place(float(msg.get("scale", 1.0)), pos, float(msg.get("yaw", 0.0)))
+            elif kind == "fit":
+                self.scene.fit(client)
+            elif kind == "player":
+                await (self.start_sample() if msg.get("on") else self.stop_sample())
+            elif kind == "stats":
+                self.reply(client, {"type": "stats", "client": client, "received": stats.received,
+                                    "malformed": stats.malformed, "last_seq": stats.last_seq})
+            else:
+                raise ProtocolError(f"unknown message type {kind!r}")
+        except ProtocolError as exc:
+            stats.malformed += 1
+            self.reply(client, {"type": "error", "message": f"bad message: {exc}"})
+        except (KinetreError, TypeError, ValueError) as exc:
+            self.reply(client, {"type": "error", "message": str(exc)})
+
+    def reply(self, client: str, message: dict) -> None:
+        self.hub.publish(Frame(f"kinetre.client.{client}", 0, now_ms(), json.dumps(message).encode()))
+
+    # --- the sample motion -----------------------------------------------------------------------------
+    async def start_sample(self) -> None:
+        if self.player is None:
+            return
+        self.player.playing = True
+        self.player.publish(0, now_ms())
+        await asyncio.sleep(0.05)  # let the scene receive the first frame
+        if not any(u.bind is not None for c, u in self.scene.users.items() if c != SAMPLE_CLIENT):
+            self.scene.fit(SAMPLE_CLIENT)
+            try:
+                await self.scene.possess(SAMPLE_CLIENT)
+            except KinetreError:
+                pass  # a mesh the walk cannot reach just stands still
+
+    async def stop_sample(self) -> None:
+        if self.player is not None and self.player.playing:
+            self.player.playing = False
+            await self.scene.release(SAMPLE_CLIENT)
+
+    # --- mesh uploads ----------------------------------------------------------------------------------
+    def start_job(self, name: str, data: bytes, loop: asyncio.AbstractEventLoop) -> Job:
+        job = Job(next(self._ids), name)
+        self.jobs[job.id] = job
+        folder = Path(tempfile.mkdtemp(prefix="kinetre-upload-"))
+        path = folder / (Path(name).name or "mesh")
+        path.write_bytes(data)
+
+        def progress(stage: str, fraction: float) -> None:
+            job.stage, job.fraction = stage, fraction
+
+        def work() -> None:
+            try:
+                mesh, graph = prepare_mesh(str(path), progress=progress)
+            except KinetreError as exc:
+                job.error = str(exc).replace(str(folder) + os.sep, "")
+                job.stage, job.done = "failed", True
+                return
+            except Exception as exc:  # a bug must still reach the page as a message, not a dead bar
+                job.error = f"{name}: could not prepare the mesh ({type(exc).__name__}: {exc})"
+                job.stage, job.done = "failed", True
+                return
+            finally:
+                shutil.rmtree(folder, ignore_errors=True)
+
+            def swap() -> None:
+                self.player_off_for_new_mesh()
+                self.scene.set_mesh(mesh, graph, Path(name).name)
+                job.done = True
+
+            loop.call_soon_threadsafe(swap)
+
+        threading.Thread(target=work, daemon=True).start()
+        return job
+
+    def player_off_for_new_mesh(self) -> None:
+        if self.player is not None:
+            self.player.playing = False
+
+    # --- takes -----------------------------------------------------------------------------------------
+    async def stop_recording(self) -> dict:
+        take = resample(self.scene.stop_recording(), TAKE_FPS)
+        if not take:
+            raise KinetreError("the take is empty: possess the mesh (or play the sample) while recording")
+        take_id = next(self._takes)
+        folder = self.takes_dir / str(take_id)
+        folder.mkdir(parents=True)
+        scene = self.scene
+        files = await asyncio.to_thread(export_take, folder, scene.mesh, scene.graph, take, TAKE_FPS)
+        return {"take": take_id, "frames": len(take), "fps": TAKE_FPS,
+                "files": {k: f"/api/takes/{take_id}/{v}" for k, v in files.items()}}
+
+
+def export_take(folder: Path, mesh, graph, take, fps: float) -> dict[str, str]:
+    """Write the take as GLB (the mesh animated), BVH and the skeleton stream of its first user."""
+    from ..export.gltf import write_gltf
+    files = {}
+    write_gltf(folder / "take.glb", mesh, graph, [f.pose for f in take], fps)
+    files["glb"] = "take.glb"
+    clients = [c for c in take[0].skeletons]
+    if clients:
+        frames = [f.skeletons.get(clients[0]) for f in take]
+        frames = [s for s in frames if s is not None]
+        from ..export.bvh import write_bvh
+        write_bvh(folder / "take.bvh", frames, fps)
+        files["bvh"] = "take.bvh"
+        from ..motion import stream
+        stream.write_stream(folder / "take.kinetre.jsonl", frames, fps)
+        files["stream"] = "take.kinetre.jsonl"
+    return files
+
+
+def create_app(mesh_path: str | None = None, nodes: int = NODES, sample_motion: bool = True) -> Starlette:
+    """The studio as an ASGI app (tests run it under uvicorn on 127.0.0.1)."""
+    path = mesh_path or str(data_path("spot.obj"))
+    mesh, graph = prepare_mesh(path, nodes)
+    hub = Hub()
+    studio = Studio(hub, Scene(hub, mesh, graph, Path(path).name))
+    if sample_motion and mesh_path is None:
+        studio.player = sample_player(hub)
+    clients = itertools.count(1)
+    tasks: list[asyncio.Task] = []
+
+    @contextlib.asynccontextmanager
+    async def lifespan(app):
+        loop = asyncio.get_running_loop()
+        tasks.append(loop.create_task(studio.scene.run()))
+        if studio.player is not None:
+            tasks.append(loop.create_task(studio.player.run()))
+            await studio.start_sample()
+        yield
+        for task in tasks:
+            task.cancel()
+        shutil.rmtree(studio.takes_dir, ignore_errors=True)
+
+    async def ws_endpoint(ws: WebSocket) -> None:
+        await ws.accept()
+        client = f"c{next(clients)}"
+        studio.stats[client] = ClientStats()
+        sub = hub.subscribe(TRANSFORMS, STATE, SKELETONS, f"kinetre.client.{client}")
+        await ws.send_text(json.dumps({"type": "welcome", "client": client,
+                                       "channel": f"kinetre.skeleton.{client}"}))
+        await ws.send_text(json.dumps(studio.scene.state()))
+        await ws.send_bytes(studio.scene.transforms_block())
+
+        async def send_loop() -> None:
+            # one sender per connection: a slow viewer only ever has the newest frame per subject waiting
+            while True:
+                frame = await sub.next()
+                if frame is None:
+                    return
+                if frame.subject == TRANSFORMS:
+                    await ws.send_bytes(frame.data)
+                elif frame.subject.startswith("kinetre.skeleton.") and frame.subject.endswith("." + client):
+                    continue  # a page draws its own skeleton from its own tracker
+                else:
+                    await ws.send_text(frame.data.decode())
+
+        sender = asyncio.get_running_loop().create_task(send_loop())
+        try:
+            while True:
+                message = await ws.receive()
+                if message["type"] == "websocket.disconnect":
+                    break
+                data = message.get("text")
+                if data is None:
+                    data = message.get("bytes") or b""
+                await studio.handle(client, data)
+        except WebSocketDisconnect:
+            pass
+        finally:
+            sender.cancel()
+            sub.close()
+            studio.stats.pop(client, None)
+            studio.scene.forget(client)
+
+    async def state(request: Request) -> Response:
+        return JSONResponse(studio.scene.state())
+
+    async def mesh_get(request: Request) -> Response:
+        scene = studio.scene
+        if int(request.path_params["mesh_id"]) != scene.mesh_id:
+            return JSONResponse({"error": f"mesh {request.path_params['mesh_id']} is not loaded"}, 404)
+        return JSONResponse(mesh_payload(scene.mesh, scene.graph, scene.mesh_id, scene.name))
+
+    async def mesh_post(request: Request) -> Response:
+        name = request.query_params.get("name", "mesh")
+        data = await request.body()
+        if not data:
+            return JSONResponse({"error": f"{name}: the file is empty"}, 400)
+        if len(data) > MAX_UPLOAD:
+            return JSONResponse({"error": f"{name}: {len(data) >> 20} MB is over the {MAX_UPLOAD >> 20} MB limit"},
+                                413)
+        job = studio.start_job(name, data, asyncio.get_running_loop())
+        return JSONResponse({"job": job.id}, 202)
+
+    async def job_get(request: Request) -> Response:
+        job = studio.jobs.get(int(request.path_params["job_id"]))
+        if job is None:
+            return JSONResponse({"error": "no such job"}, 404)
+        return JSONResponse({"job": job.id, "name": job.name, "stage": job.stage, "fraction": job.fraction,
+                             "error": job.error, "done": job.done,
+                             "mesh": studio.scene.mesh_id if job.done and not job.error else None})
+
+    async def voice_post(request: Request) -> Response:
+        client = request.query_params.get("client", "")
+        data = await request.body()
+        try:
+            from .voice import recognise
+        except ImportError as exc:
+            return JSONResponse({"error": f"voice recognition is not installed ({exc}); "
+                                          "install kinetre[voice]"}, 503)
+        try:
+            command = await asyncio.to_thread(recognise, data, 16000)
+        except KinetreError as exc:
+            return JSONResponse({"error": str(exc)}, 400)
+        if command is None:
+            return JSONResponse({"command": None})
+        result = {"verb": command.verb, "subset": command.subset, "text": command.text}
+        if client in studio.stats:
+            try:
+                if command.verb == "possess":
+                    await studio.handle(client, json.dumps({"type": "possess", "subset": command.subset}))
+                elif command.verb == "release":
+                    await studio.handle(client, json.dumps({"type": "release"}))
+                elif command.subset is not None:
+                    await studio.handle(client, json.dumps({"type": "subset", "subset": command.subset}))
+            except KinetreError as exc:
+                return JSONResponse({"command": result, "error": str(exc)})
+        return JSONResponse({"command": result})
+
+    async def record_start(request: Request) -> Response:
+        studio.scene.start_recording()
+        return JSONResponse({"recording": True})
+
+    async def record_stop(request: Request) -> Response:
+        try:
+            return JSONResponse(await studio.stop_recording())
+        except KinetreError as exc:
+            return JSONResponse({"error": str(exc)}, 400)
+
+    async def take_get(request: Request) -> Response:
+        name = request.path_params["name"]
+        folder = studio.takes_dir / str(int(request.path_params["take_id"]))
+        path = folder / Path(name).name
+        if not path.is_file():
+            return JSONResponse({"error": f"no file {name} in take {request.path_params['take_id']}"}, 404)
+        return FileResponse(path, filename=f"kinetre-{request.path_params['take_id']}-{path.name}")
+
+    routes = [
+        WebSocketRoute("/ws", ws_endpoint),
+        Route("/api/state", state),
+        Route("/api/mesh/{mesh_id:int}", mesh_get),
+        Route("/api/mesh", mesh_post, methods=["POST"]),
+        Route("/api/jobs/{job_id:int}", job_get),
+        Route("/api/voice", voice_post, methods=["POST"]),
+        Route("/api/record/start", record_start, methods=["POST"]),
+        Route("/api/record/stop", record_stop, methods=["POST"]),
+        Route("/api/takes/{take_id:int}/{name}", take_get),
+    ]
+    static = static_dir()
+    if (static / "index.html").is_file():
+        routes.append(Mount("/", StaticFiles(directory=static, html=True)))
+    else:
+        async def not_built(request: Request) -> Response:
+            return Response("The studio page is not built: run `make web` (cd web && npm ci && npm run build).",
+                            503, media_type="text/plain")
+        routes.append(Route("/", not_built))
+    app = Starlette(routes=routes, lifespan=lifespan)
+    app.state.studio = studio
+    return app
+
+
+def sample_player(hub: Hub):
+    """The CMU walk (shipped in kinetre/data) as a looping capture client, or None if it cannot load."""
+    from .player import MotionPlayer, decimate, in_place
+    try:
+        from ..motion.bvh import load_bvh
+        take = load_bvh(str(data_path("cmu_12_01_walk.bvh")))
+        frames = [take.frame(i) for i in range(len(take))]
+        fps = float(take.fps)
+    except (ImportError, KinetreError):
+        return None
+    frames, fps = decimate(in_place(frames), fps)
+    return MotionPlayer(hub, frames, fps, SAMPLE_CLIENT)
+
+
+def run_studio(mesh_path: str | None, host: str = "127.0.0.1", port: int = 8000, open_browser: bool = True) -> None:
+    """Serve the studio until interrupted (what `kinetre studio` runs). Raises KinetreError on a bad mesh."""
+    import uvicorn
+    app = create_app(mesh_path)
+    url = f"http://{'127.0.0.1' if host in ('0.0.0.0', '::') else host}:{port}/"
+    if open_browser:
+        threading.Timer(1.0, webbrowser.open, args=(url,)).start()
+    print(f"Kinetre studio on {url} (Ctrl+C to stop)", flush=True)
+    uvicorn.run(app, host=host, port=port, log_level="warning", ws_max_size=1 << 20)

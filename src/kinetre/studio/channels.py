@@ -1,0 +1,146 @@
+"""Publish/subscribe channels between capture clients, the scene and viewers (`003_…` §2, SPEC §7).
+
+Every capture client publishes its skeleton frames on its own subject, the scene publishes node
+transforms on one subject, and any number of viewers subscribe. Subjects follow NATS syntax
+(dot-separated tokens, `*` matches one token, `>` the rest) so that a NATS server can replace the
+embedded `Hub` for many machines: a replacement implements the same two methods, `publish` and
+`subscribe`, and hands out objects with the `Subscription` methods.
+
+Delivery is *latest wins per subject*: a subscriber that falls behind sees only the newest frame of
+each subject, never a queue. Memory per subscription is bounded by the number of subjects it matches.
+
+    >>> import asyncio
+    >>> async def demo():
+    ...     hub = Hub()
+    ...     sub = hub.subscribe("kinetre.skeleton.*")
+    ...     for seq in range(3):
+    ...         hub.publish(Frame("kinetre.skeleton.a", seq, 0.0, b"x"))
+    ...     return (await sub.next()).seq
+    >>> asyncio.run(demo())
+    2
+"""
+from __future__ import annotations
+
+import asyncio
+import time
+from dataclasses import dataclass, field
+from typing import Protocol
+
+
+@dataclass(frozen=True)
+class Frame:
+    """One message on a subject.
+
+    Attributes
+    ----------
+    subject : str
+        e.g. "kinetre.skeleton.c3" or "kinetre.transforms".
+    seq : int
+        The publisher's sequence number (increasing per subject).
+    t : float
+        The publisher's timestamp in milliseconds (Unix epoch), carried end to end for latency.
+    data : bytes
+        The payload (JSON text or a binary transform block); the hub never looks inside.
+    """
+
+    subject: str
+    seq: int
+    t: float
+    data: bytes
+
+
+def subject_matches(pattern: str, subject: str) -> bool:
+    """NATS subject matching: `*` is one token, a trailing `>` is one or more tokens.
+
+    >>> subject_matches("a.*.c", "a.b.c"), subject_matches("a.>", "a.b.c"), subject_matches("a.*", "a.b.c")
+    (True, True, False)
+    """
+    p, s = pattern.split("."), subject.split(".")
+    for i, token in enumerate(p):
+        if token == ">":
+            return len(s) > i
+        if i >= len(s) or (token != "*" and token != s[i]):
+            return False
+    return len(p) == len(s)
+
+
+class Subscription:
+    """The receiving end of `Hub.subscribe`: a latest-wins slot per matching subject."""
+
+    def __init__(self, hub: "Hub", patterns: tuple[str, ...]):
+        self.patterns = patterns
+        self._hub = hub
+        self._latest: dict[str, Frame] = {}  # insertion order = order subjects became pending
+        self._wakeup = asyncio.Event()
+        self.skipped = 0  # frames replaced before they were read (how far a slow reader fell behind)
+        self.closed = False
+
+    def _offer(self, frame: Frame) -> None:
+        if frame.subject in self._latest:
+            self.skipped += 1
+            # keep the subject's place in line, replace its frame
+        self._latest[frame.subject] = frame
+        self._wakeup.set()
+
+    def poll(self) -> Frame | None:
+        """The oldest pending subject's newest frame, or None when nothing is pending."""
+        if not self._latest:
+            return None
+        subject = next(iter(self._latest))
+        frame = self._latest.pop(subject)
+        if not self._latest:
+            self._wakeup.clear()
+        return frame
+
+    async def next(self, timeout: float | None = None) -> Frame | None:
+        """Wait for the next frame (None on timeout or after `close`)."""
+        deadline = None if timeout is None else time.monotonic() + timeout
+        while not self.closed:
+            frame = self.poll()
+            if frame is not None:
+                return frame
+            remaining = None if deadline is None else deadline - time.monotonic()
+            if remaining is not None and remaining <= 0:
+                return None
+            try:
+                await asyncio.wait_for(self._wakeup.wait(), remaining)
+            except asyncio.TimeoutError:
+                return None
+        return None
+
+    def close(self) -> None:
+        self.closed = True
+        self._wakeup.set()
+        self._hub._remove(self)
+
+
+class Channels(Protocol):
+    """What the studio needs from a message bus (the embedded `Hub`, or a NATS client adapter)."""
+
+    def publish(self, frame: Frame) -> None: ...
+
+    def subscribe(self, *patterns: str) -> Subscription: ...
+
+
+@dataclass
+class Hub:
+    """The in-process bus embedded in the studio server. Not thread-safe: use it from the event loop."""
+
+    _subs: list[Subscription] = field(default_factory=list)
+    published: int = 0
+
+    def publish(self, frame: Frame) -> None:
+        self.published += 1
+        for sub in self._subs:
+            if any(subject_matches(p, frame.subject) for p in sub.patterns):
+                sub._offer(frame)
+
+    def subscribe(self, *patterns: str) -> Subscription:
+        """One latest-wins subscription to every subject matching any of `patterns`."""
+        sub = Subscription(self, patterns)
+        self._subs.append(sub)
+        return sub
+
+    def _remove(self, sub: Subscription) -> None:
+        if sub in self._subs:
+            self._subs.remove(sub)

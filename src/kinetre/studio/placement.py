@@ -1,0 +1,67 @@
+"""Where the mesh stands in the room: uniform scale, yaw about +Y and a translation (world = s R local + p)."""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..mesh.mesh import Mesh
+from ..mesh.normals import vertex_normals
+from ..skeleton.models import Skeleton
+
+
+@dataclass(frozen=True)
+class Placement:
+    """The mesh's model transform.
+
+    Attributes
+    ----------
+    scale : float
+        Uniform scale s > 0.
+    position : (3,) tuple of float
+        Translation p in metres.
+    yaw : float
+        Rotation about +Y in radians.
+    """
+
+    scale: float = 1.0
+    position: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    yaw: float = 0.0
+
+    @property
+    def rotation(self) -> np.ndarray:
+        c, s = math.cos(self.yaw), math.sin(self.yaw)
+        return np.array([[c, 0.0, s], [0.0, 1.0, 0.0], [-s, 0.0, c]])
+
+    def matrix(self) -> np.ndarray:
+        """(4, 4) float64 local → world."""
+        m = np.eye(4)
+        m[:3, :3] = self.scale * self.rotation
+        m[:3, 3] = self.position
+        return m
+
+    def to_local(self, skeleton: Skeleton) -> Skeleton:
+        """The skeleton in the mesh's own frame: l = Rᵀ (x − p) / s."""
+        rt = self.rotation.T
+        inv = 1.0 / self.scale
+        return skeleton.transformed(inv, rt, -inv * (rt @ np.asarray(self.position, dtype=np.float64)))
+
+    def as_dict(self) -> dict:
+        return {"scale": self.scale, "position": list(self.position), "yaw": self.yaw,
+                "matrix": self.matrix().T.reshape(-1).tolist()}  # column-major, as three.js Matrix4.elements
+
+
+def standing_mesh(mesh: Mesh, height: float = 1.6) -> Mesh:
+    """The mesh scaled to `height` metres tall, centred on x = z = 0 with its lowest point on y = 0.
+
+    Meshes come in any unit (a teapot 3.15 units tall, a scan in millimetres); the studio works in
+    metres so that the attachment distances (10 cm, SPEC §3.2) mean the same on every mesh.
+    """
+    lo, hi = mesh.bounds
+    extent = float(hi[1] - lo[1]) or float(np.max(hi - lo))
+    s = height / extent
+    centre = np.array([(lo[0] + hi[0]) / 2, lo[1], (lo[2] + hi[2]) / 2])
+    vertices = (mesh.vertices - centre) * s
+    return Mesh(vertices=vertices, faces=mesh.faces, normals=vertex_normals(vertices, mesh.faces), uvs=mesh.uvs,
+                colors=mesh.colors, material=mesh.material, source=mesh.source)

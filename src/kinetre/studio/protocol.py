@@ -1,0 +1,113 @@
+"""The studio's wire format: JSON control/skeleton messages and the binary node-transform block.
+
+Client → server (WebSocket text, JSON objects with a "type"):
+    {"type": "skeleton", "seq": int, "t": ms, "model": "kinect20",
+     "positions": [[x, y, z] × J] (metres, +Y up; null rows allowed), "tracked": [bool × J]}
+    {"type": "possess", "subset": str | [str] | null}   {"type": "release"}
+    {"type": "subset", "subset": ...}   {"type": "place", "scale": s, "position": [3], "yaw": radians}
+    {"type": "fit"}   {"type": "player", "on": bool}   {"type": "record", "on": bool}   {"type": "stats"}
+
+Server → client: JSON {"type": "welcome" | "state" | "skeleton" | "stats" | "error" | "progress", …}
+and binary transform blocks (little-endian):
+    offset 0   4s   b"KTX1"
+    offset 4   u32  seq (scene frame number)
+    offset 8   u32  mesh id (a page drops blocks for a mesh it has not loaded yet)
+    offset 12  u32  N nodes
+    offset 16  f64  t_source: timestamp (ms) of the newest skeleton frame the solve used
+    offset 24  f64  t_out: server time (ms) when the block was published
+    offset 32  f32  N × 12: the top three rows of each node matrix (pose.node_matrices), row-major
+"""
+from __future__ import annotations
+
+import json
+import math
+import struct
+
+import numpy as np
+
+from ..errors import BadSkeletonError
+from ..skeleton.models import MODELS, Skeleton
+
+MAGIC = b"KTX1"
+HEADER = struct.Struct("<4sIIIdd")
+MAX_MESSAGE = 1 << 16  # bytes; a Kinect-20 frame is ~1.5 kB
+
+
+class ProtocolError(ValueError):
+    """A client message that is not valid JSON or not a well-formed command (answered, never fatal)."""
+
+
+def parse_message(text: str | bytes) -> dict:
+    """Decode one client message; raises ProtocolError with a short reason."""
+    if len(text) > MAX_MESSAGE:
+        raise ProtocolError(f"message of {len(text)} bytes exceeds {MAX_MESSAGE}")
+    try:
+        msg = json.loads(text)
+    except (ValueError, UnicodeDecodeError) as exc:
+        raise ProtocolError(f"not JSON ({exc})") from None
+    if not isinstance(msg, dict) or not isinstance(msg.get("type"), str):
+        raise ProtocolError("expected a JSON object with a string 'type'")
+    return msg
+
+
+def _number(msg: dict, key: str) -> float:
+    value = msg.get(key)
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+        raise ProtocolError(f"'{key}' must be a finite number, got {value!r}")
+    return float(value)
+
+
+def parse_skeleton(msg: dict) -> tuple[int, float, Skeleton]:
+    """(seq, t, Skeleton) from a "skeleton" message; rows that are null or non-finite are untracked."""
+    seq = _number(msg, "seq")
+    if seq < 0 or seq != int(seq):
+        raise ProtocolError(f"'seq' must be a non-negative integer, got {msg.get('seq')!r}")
+    t = _number(msg, "t")
+    model = MODELS.get(msg.get("model", "kinect20"))
+    if model is None:
+        raise ProtocolError(f"unknown skeleton model {msg.get('model')!r} (expected one of {', '.join(MODELS)})")
+    rows, tracked = msg.get("positions"), msg.get("tracked")
+    j = len(model.joints)
+    if not isinstance(rows, list) or len(rows) != j:
+        raise ProtocolError(f"'positions' must list {j} joints for {model.name}")
+    if not isinstance(tracked, list) or len(tracked) != j or not all(isinstance(b, bool) for b in tracked):
+        raise ProtocolError(f"'tracked' must list {j} booleans for {model.name}")
+    pos = np.full((j, 3), np.nan)
+    for i, row in enumerate(rows):
+        if row is None:
+            continue
+        if (not isinstance(row, list) or len(row) != 3
+                or not all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in row)):
+            raise ProtocolError(f"joint {i} of 'positions' must be [x, y, z] numbers or null")
+        pos[i] = row
+    try:
+        skeleton = Skeleton(model, pos, np.asarray(tracked, dtype=bool))
+    except BadSkeletonError as exc:
+        raise ProtocolError(str(exc)) from None
+    return int(seq), t, skeleton
+
+
+def skeleton_json(client: str, seq: int, t: float, skeleton: Skeleton) -> bytes:
+    """The "skeleton" message forwarded to viewers (untracked rows become null)."""
+    rows = [[round(float(v), 4) for v in p] if ok else None
+            for p, ok in zip(skeleton.positions, skeleton.tracked)]
+    return json.dumps({"type": "skeleton", "client": client, "seq": seq, "t": t, "model": skeleton.model.name,
+                       "positions": rows, "tracked": skeleton.tracked.tolist()}).encode()
+
+
+def pack_transforms(seq: int, mesh_id: int, matrices: np.ndarray, t_source: float, t_out: float) -> bytes:
+    """Binary block for (N, 4, 4) node matrices (see the module docstring)."""
+    n = matrices.shape[0]
+    body = np.ascontiguousarray(matrices[:, :3, :], dtype="<f4").tobytes()
+    return HEADER.pack(MAGIC, seq & 0xFFFFFFFF, mesh_id, n, t_source, t_out) + body
+
+
+def unpack_transforms(block: bytes) -> tuple[int, int, float, float, np.ndarray]:
+    """(seq, mesh_id, t_source, t_out, (N, 4, 4) float32) from `pack_transforms` output."""
+    magic, seq, mesh_id, n, t_source, t_out = HEADER.unpack_from(block)
+    if magic != MAGIC or len(block) != HEADER.size + 48 * n:
+        raise ProtocolError("not a transform block")
+    m = np.zeros((n, 4, 4), np.float32)
+    m[:, :3, :] = np.frombuffer(block, "<f4", offset=HEADER.size).reshape(n, 3, 4)
+    m[:, 3, 3] = 1.0
+    return seq, mesh_id, t_source, t_out, m

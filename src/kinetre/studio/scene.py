@@ -1,0 +1,321 @@
+"""The server-side scene (`003_…` §2's render component, minus the rendering): mesh, graph, rigs, solver.
+
+It subscribes to every skeleton subject ("kinetre.skeleton.*"), keeps each user's newest frame and, while
+anyone possesses the mesh, solves the graph pose from all possessing users at once (their constraints add
+up, SPEC §3.2) and publishes the node matrices on "kinetre.transforms". Frames that arrive while a solve
+runs are merged latest-wins, so a slow solve lowers the frame rate instead of building a queue.
+"""
+from __future__ import annotations
+
+import asyncio
+import json
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..deform.pose import GraphPose
+from ..errors import AttachError
+from ..graph.graph import DeformationGraph
+from ..mesh.mesh import Mesh
+from ..skeleton.models import Skeleton
+from ..skeleton.rig import Rig, attach
+from ..skeleton.subsets import subset_mask
+from .channels import Channels, Frame
+from .placement import Placement
+from .protocol import ProtocolError, pack_transforms, parse_message, parse_skeleton
+
+SKELETONS = "kinetre.skeleton.*"
+TRANSFORMS = "kinetre.transforms"
+STATE = "kinetre.state"
+
+
+def now_ms() -> float:
+    return time.time() * 1000.0
+
+
+@dataclass
+class User:
+    """One capture source (a page's webcam, or the sample-motion player)."""
+
+    client: str
+    latest: Skeleton | None = None  # world frame, newest received
+    seq: int = -1
+    t: float = 0.0
+    frames: int = 0
+    bind: Skeleton | None = None  # mesh frame, the pose at possession (None = not possessing)
+    subset: str | list | None = None
+
+    def masked(self, skeleton: Skeleton) -> Skeleton:
+        """Joints outside the user's subset count as untracked, so they neither attach nor pull."""
+        if self.subset is None:
+            return skeleton
+        return Skeleton(skeleton.model, skeleton.positions, skeleton.tracked & subset_mask(skeleton.model,
+                                                                                           self.subset))
+
+
+@dataclass
+class TakeFrame:
+    t: float
+    pose: GraphPose
+    skeletons: dict[str, Skeleton] = field(default_factory=dict)
+
+
+class Scene:
+    """Mesh + graph + rig + solver, driven by skeleton channels.
+
+    Parameters
+    ----------
+    hub : Channels
+    mesh : Mesh
+        In metres, standing on y = 0 (see `placement.standing_mesh`).
+    graph : DeformationGraph
+        Built on `mesh`.
+    name : str
+        Shown in the page.
+    """
+
+    def __init__(self, hub: Channels, mesh: Mesh, graph: DeformationGraph, name: str = "mesh"):
+        self.hub = hub
+        self.users: dict[str, User] = {}
+        self.placement = Placement()
+        self.mesh_id = 0
+        self.rig: Rig | None = None
+        self.possessors: list[str] = []  # order of the skeletons given to the rig
+        self.pose: GraphPose | None = None
+        self.seq = 0
+        self.recording: list[TakeFrame] | None = None
+        self.last_error = ""
+        self.solve_ms: list[float] = []  # recent solve durations, for the state line
+        self._lock = asyncio.Lock()  # one attach/solve at a time; both run in a worker thread
+        self._dirty = asyncio.Event()
+        self._state_seq = 0
+        self.set_mesh(mesh, graph, name)
+
+    # --- mesh and placement -------------------------------------------------------------------------
+    def set_mesh(self, mesh: Mesh, graph: DeformationGraph, name: str) -> None:
+        """Swap in a new mesh: everybody is released, the pose resets to rest."""
+        self.mesh, self.graph, self.name = mesh, graph, name
+        self.mesh_id += 1
+        self.rig, self.possessors = None, []
+        for user in self.users.values():
+            user.bind = None
+        self.pose = GraphPose.identity(graph.node_count)
+        self.recording = None
+        self._publish_pose(now_ms())
+        self.publish_state()
+
+    def place(self, scale: float, position, yaw: float) -> None:
+        if not (np.isfinite(scale) and scale > 0):
+            raise ProtocolError(f"scale must be a positive number, got {scale}")
+        pos = tuple(float(v) for v in position)
+        if len(pos) != 3 or not np.all(np.isfinite(pos)) or not np.isfinite(yaw):
+            raise ProtocolError("position must be 3 finite numbers and yaw a finite number")
+        self.placement = Placement(float(scale), pos, float(yaw))
+        self.publish_state()
+
+    def fit(self, client: str) -> None:
+        """Scale the mesh to the user's height and stand it where the user stands (paper: scale to height)."""
+        user = self.users.get(client)
+        if user is None or user.latest is None or user.latest.tracked.sum() < 2:
+            raise AttachError("no tracked skeleton yet: step in front of the camera first")
+        sk = user.latest
+        height = sk.height
+        mesh_height = float(np.ptp(self.mesh.vertices[:, 1]))
+        if height <= 0.3 or mesh_height <= 0:
+            raise AttachError(f"the tracked skeleton is {height:.2f} m tall: show your whole body to the camera")
+        centre = sk.positions[sk.tracked].mean(axis=0)
+        foot = float(sk.positions[sk.tracked, 1].min())
+        self.placement = Placement(height / mesh_height, (float(centre[0]), foot, float(centre[2])),
+                                   self.placement.yaw)
+        self.publish_state()
+
+    # --- users --------------------------------------------------------------------------------------
+    def user(self, client: str) -> User:
+        if client not in self.users:
+            self.users[client] = User(client)
+        return self.users[client]
+
+    def forget(self, client: str) -> None:
+        """A client disconnected: it lets go and disappears."""
+        if client in self.users:
+            if self.users[client].bind is not None:
+                self.users[client].bind = None
+                self._rebuild_rig_later()
+            del self.users[client]
+            self.publish_state()
+
+    def receive(self, frame: Frame) -> None:
+        """A skeleton frame from the hub (already validated by the server that published it)."""
+        client = frame.subject.rsplit(".", 1)[-1]
+        try:
+            seq, t, skeleton = parse_skeleton(parse_message(frame.data))
+        except ProtocolError:
+            return
+        user = self.user(client)
+        if seq <= user.seq and user.frames:
+            return  # late or duplicate frame: skip, never reorder
+        user.latest, user.seq, user.t = skeleton, seq, t
+        user.frames += 1
+        if user.bind is not None:
+            self._dirty.set()
+
+    async def possess(self, client: str, subset=None) -> None:
+        """Bind the user's current pose (SPEC §3.2); raises AttachError when nothing is near the mesh."""
+        user = self.user(client)
+        if user.latest is None or not user.latest.tracked.any():
+            raise AttachError("no tracked skeleton from this client yet: nothing to possess with")
+        if subset is not None:
+            subset_mask(user.latest.model, subset)  # BadSkeletonError on an unknown name
+        old_bind, old_subset = user.bind, user.subset
+        user.subset = subset
+        user.bind = user.masked(self.placement.to_local(user.latest))
+        try:
+            await self._rebuild_rig()
+        except Exception:
+            user.bind, user.subset = old_bind, old_subset
+            await self._rebuild_rig()
+            raise
+        self.publish_state()
+
+    async def release(self, client: str) -> None:
+        user = self.users.get(client)
+        if user is None or user.bind is None:
+            return
+        user.bind = None
+        await self._rebuild_rig()
+        self.publish_state()
+
+    async def set_subset(self, client: str, subset) -> None:
+        """Change which joints drive; a possessing user re-binds with the new subset at the current pose."""
+        user = self.user(client)
+        if user.latest is not None and subset is not None:
+            subset_mask(user.latest.model, subset)
+        if user.bind is not None:
+            await self.possess(client, subset)
+        else:
+            user.subset = subset
+            self.publish_state()
+
+    def _rebuild_rig_later(self) -> None:
+        asyncio.get_running_loop().create_task(self._rebuild_rig())
+
+    async def _rebuild_rig(self) -> None:
+        async with self._lock:
+            possessors = [c for c, u in self.users.items() if u.bind is not None]
+            if not possessors:
+                self.rig, self.possessors = None, []
+                self.pose = GraphPose.identity(self.graph.node_count)  # let go: back to rest
+                self._publish_pose(now_ms())
+                return
+            binds = [self.users[c].bind for c in possessors]
+            graph = self.graph
+            self.rig = await asyncio.to_thread(attach, graph, binds if len(binds) > 1 else binds[0])
+            self.possessors = possessors
+        self._dirty.set()
+
+    # --- the solve loop -----------------------------------------------------------------------------
+    async def run(self) -> None:
+        """Consume skeleton frames and publish transforms until cancelled."""
+        sub = self.hub.subscribe(SKELETONS)
+        feeder = asyncio.get_running_loop().create_task(self._feed(sub))
+        try:
+            while True:
+                await self._dirty.wait()
+                self._dirty.clear()
+                await self.solve_once()
+        finally:
+            feeder.cancel()
+            sub.close()
+
+    async def _feed(self, sub) -> None:
+        while True:
+            frame = await sub.next()
+            if frame is None:
+                return
+            self.receive(frame)
+
+    async def solve_once(self) -> GraphPose | None:
+        """Solve with every possessing user's newest frame and publish the node matrices."""
+        async with self._lock:
+            if self.rig is None:
+                return None
+            users = [self.users[c] for c in self.possessors if c in self.users]
+            if len(users) != len(self.possessors):
+                return None
+            frames = [u.masked(self.placement.to_local(u.latest)) for u in users]
+            t_source = max(u.t for u in users)
+            start = time.perf_counter()
+            rig = self.rig
+            pose = await asyncio.to_thread(rig.solve, frames if len(frames) > 1 else frames[0])
+            self.solve_ms = (self.solve_ms + [1000 * (time.perf_counter() - start)])[-60:]
+            self.pose = pose
+            self._publish_pose(t_source)
+            if self.recording is not None:
+                self.recording.append(TakeFrame(now_ms(), pose, {u.client: u.latest for u in users}))
+            return pose
+
+    def _publish_pose(self, t_source: float) -> None:
+        self.seq += 1
+        block = pack_transforms(self.seq, self.mesh_id, self.pose.node_matrices(self.graph.nodes), t_source,
+                                now_ms())
+        self.hub.publish(Frame(TRANSFORMS, self.seq, t_source, block))
+
+    def transforms_block(self) -> bytes:
+        """The current pose as a transform block (sent to a viewer when it connects)."""
+        return pack_transforms(self.seq, self.mesh_id, self.pose.node_matrices(self.graph.nodes), now_ms(),
+                               now_ms())
+
+    # --- state for the pages ------------------------------------------------------------------------
+    def state(self) -> dict:
+        attached = {}
+        if self.rig is not None:
+            joints = getattr(self.rig, "attached_joints", None)
+            if joints is not None:
+                per = joints if len(self.possessors) > 1 else [joints]
+                attached = {c: np.asarray(j).tolist() for c, j in zip(self.possessors, per)}
+        return {
+            "type": "state",
+            "mesh": {"id": self.mesh_id, "name": self.name, "url": f"/api/mesh/{self.mesh_id}",
+                     "nodes": self.graph.node_count, "vertices": int(len(self.mesh.vertices))},
+            "placement": self.placement.as_dict(),
+            "users": [{"client": u.client, "possessing": u.bind is not None, "subset": u.subset,
+                       "frames": u.frames, "attached": attached.get(u.client, [])}
+                      for u in self.users.values()],
+            "recording": self.recording is not None,
+            "solve_ms": float(np.median(self.solve_ms)) if self.solve_ms else None,
+            "error": self.last_error,
+        }
+
+    def publish_state(self) -> None:
+        self._state_seq += 1
+        self.hub.publish(Frame(STATE, self._state_seq, now_ms(), json.dumps(self.state()).encode()))
+
+    # --- takes --------------------------------------------------------------------------------------
+    def start_recording(self) -> None:
+        self.recording = []
+        self.publish_state()
+
+    def stop_recording(self) -> list[TakeFrame]:
+        take, self.recording = self.recording or [], None
+        self.publish_state()
+        return take
+
+
+def resample(take: list[TakeFrame], fps: float) -> list[TakeFrame]:
+    """The take at a fixed rate: frame k is the newest solved frame at time t0 + k / fps (held, not blended)."""
+    if not take:
+        return []
+    times = np.array([f.t for f in take])
+    count = int((times[-1] - times[0]) / 1000.0 * fps) + 1
+    picks = np.searchsorted(times, times[0] + np.arange(count) * 1000.0 / fps, side="right") - 1
+    return [take[i] for i in picks]
+
+
+def check_subset(value) -> str | list | None:
+    """A subset from a client message: null, a name, or a list of names."""
+    if value is None or isinstance(value, str):
+        return value or None
+    if isinstance(value, list) and value and all(isinstance(v, str) for v in value):
+        return value
+    raise ProtocolError(f"subset must be null, a name or a list of names, got {value!r}")
