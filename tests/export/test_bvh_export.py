@@ -3,61 +3,11 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from bvh_reader import read_bvh_positions
+from export.bvh_reader import read_bvh_positions
+from export.takes import TPOSE, rigid_take, tracked_take
 from kinetre.errors import ExportError
 from kinetre.export.bvh import rotation_residuals, write_bvh
 from kinetre.skeleton.models import KINECT20, OPENNI17, Skeleton, SkeletonModel
-from scipy.spatial.transform import Rotation
-
-# A Kinect-20 T-pose in metres (+Y up, facing +Z), hip centre 1 m above the ground.
-TPOSE = {
-    "HipCenter": (0, 1.0, 0), "Spine": (0, 1.2, 0), "ShoulderCenter": (0, 1.45, 0), "Head": (0, 1.65, 0),
-    "ShoulderLeft": (-0.18, 1.42, 0), "ElbowLeft": (-0.45, 1.42, 0), "WristLeft": (-0.7, 1.42, 0),
-    "HandLeft": (-0.78, 1.42, 0), "ShoulderRight": (0.18, 1.42, 0), "ElbowRight": (0.45, 1.42, 0),
-    "WristRight": (0.7, 1.42, 0), "HandRight": (0.78, 1.42, 0), "HipLeft": (-0.1, 0.95, 0),
-    "KneeLeft": (-0.1, 0.52, 0), "AnkleLeft": (-0.1, 0.1, 0), "FootLeft": (-0.1, 0.03, 0.1),
-    "HipRight": (0.1, 0.95, 0), "KneeRight": (0.1, 0.52, 0), "AnkleRight": (0.1, 0.1, 0),
-    "FootRight": (0.1, 0.03, 0.1),
-}
-
-
-def rigid_take(frames=30, seed=0, model=KINECT20, rest=None):
-    """Forward kinematics of the T-pose with random smooth local rotations and a moving root."""
-    rng = np.random.default_rng(seed)
-    rest = np.array([TPOSE[j] for j in model.joints]) if rest is None else rest
-    parents = np.array(model.parents)
-    phase = rng.uniform(0, 2 * np.pi, size=(len(parents), 3))
-    amp = rng.uniform(0.1, 0.8, size=(len(parents), 3))
-    take = []
-    for k in range(frames):
-        local = Rotation.from_rotvec(amp * np.sin(0.2 * k + phase)).as_matrix()
-        world_r = np.zeros((len(parents), 3, 3))
-        pos = np.zeros((len(parents), 3))
-        for i, p in enumerate(parents):
-            if p < 0:
-                world_r[i], pos[i] = local[i], rest[i] + [0.03 * k, 0.1 * np.sin(0.3 * k), 0]
-            else:
-                world_r[i] = world_r[p] @ local[i]
-                pos[i] = pos[p] + world_r[p] @ (rest[i] - rest[p])
-        take.append(Skeleton(model, pos, np.ones(len(parents), bool)))
-    return take
-
-
-def tracked_take(frames=30, seed=0):
-    """What a tracker delivers: the rigid take plus 1 cm jitter (bone lengths vary) and lost joints."""
-    rng = np.random.default_rng(seed)
-    take = []
-    for k, s in enumerate(rigid_take(frames, seed)):
-        tracked = np.ones(20, bool)
-        if k % 7 == 3:
-            tracked[[7, 14, 15]] = False           # HandLeft, AnkleLeft, FootLeft lost
-        if k == 10:
-            tracked[0] = False                     # the root lost for a frame
-        pos = s.positions + rng.normal(scale=0.01, size=(20, 3))
-        pos[~tracked] = np.nan
-        take.append(Skeleton(KINECT20, pos, tracked))
-    return take
-
 
 def max_error(path, take):
     read, _ = read_bvh_positions(path)

@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 import trimesh
-from conftest import bend_poses, reference_skin, synthetic_graph, validate_gltf
-from gltf_player import GltfPlayer
+from export.takes import bend_poses, reference_skin, synthetic_graph, validate_gltf
+from export.gltf_player import GltfPlayer
 from kinetre.deform.pose import GraphPose
 from kinetre.errors import ExportError
 from kinetre.export.gltf import polar_rotations, skin_weights, write_gltf

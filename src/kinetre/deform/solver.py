@@ -40,6 +40,10 @@ class GaussNewton:
         self.system = system
         self.settings = settings
         self.factor = ReusedCholesky(system.matrix(np.ones(len(system.indices))), backend)
+        # Below this, residuals are at round-off level (1e-10 of the graph's size per residual).
+        extent = float(np.ptp(system.b_con.reshape(-1, 3), axis=0).max()) if len(system.b_con) else 1.0
+        rows = 6 * system.n // 12 + len(system.b_reg) + len(system.b_con)
+        self.energy_floor = (1e-10 * max(extent, 1e-300)) ** 2 * rows * max(system.weights.con, 1.0)
         self._active_key = None
         self._linear_data = None
 
@@ -60,10 +64,14 @@ class GaussNewton:
         energies = [energy]
         lam = s.initial_damping
         factorisations = accepted = 0
-        while factorisations < s.max_iterations and energy > 0.0:
+        while factorisations < s.max_iterations and energy > self.energy_floor:
             data, grad = sysm.system(x, parts, linear, active)
             diag = data[sysm.diag_pos]
             floor = 1e-9 * max(diag.max(), 1e-300)
+            # A Jacobi estimate of what a full step could still gain: when it is negligible the
+            # pose is converged and no factorisation is spent confirming it.
+            if grad @ (grad / np.maximum(diag, floor)) <= 1e-2 * s.relative_tolerance * energy:
+                break
             stepped = False
             while factorisations < s.max_iterations:
                 damped = data.copy()
@@ -74,6 +82,9 @@ class GaussNewton:
                 except NotPositiveDefinite:
                     lam = min(max(lam * 10.0, 1e-6), s.max_damping)
                     continue
+                predicted = -(grad @ delta)  # the GN model's decrease, up to the damping term
+                if predicted <= 1e-3 * s.relative_tolerance * energy:
+                    break
                 x_new = x + delta.reshape(x.shape)
                 parts_new = sysm.residuals(x_new, targets, active)
                 e_new = sysm.energy(parts_new)

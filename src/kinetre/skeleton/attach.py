@@ -35,6 +35,9 @@ class SkeletonAttachment:
         Bone samples: bind position minus the bone's parent joint at bind time.
     bind : Skeleton
         The pose at possession.
+    twist_reference : (B,) int32
+        Per bone of the model, a neighbouring bone whose direction fixes the twist about this
+        bone (-1: none, the minimal rotation is used).
     """
 
     constraints: PointConstraints
@@ -42,6 +45,7 @@ class SkeletonAttachment:
     bone: np.ndarray
     offset: np.ndarray
     bind: Skeleton
+    twist_reference: np.ndarray
 
     @property
     def joint_count(self) -> int:
@@ -138,7 +142,81 @@ def attach_skeleton(graph: DeformationGraph, skeleton: Skeleton, joint_mask: np.
     else:
         cons = PointConstraints.empty()
     return SkeletonAttachment(cons, np.array(joint_of, dtype=np.int32), np.array(bone_of, dtype=np.int32),
-                              np.array(offsets).reshape(-1, 3), skeleton)
+                              np.array(offsets).reshape(-1, 3), skeleton, twist_references(skeleton))
+
+
+def twist_references(skeleton: Skeleton, min_sine: float = 0.2) -> np.ndarray:
+    """For each bone, the neighbouring bone (sharing a joint) most perpendicular to it at bind time.
+
+    A bone's direction alone leaves its twist free; the plane it spans with a neighbour does not,
+    so a rigid motion of the whole skeleton moves every bone sample rigidly. Bones with no
+    neighbour at least asin(`min_sine`) off their axis get -1.
+    """
+    bones = skeleton.model.bones
+    pos, tracked = skeleton.positions, skeleton.tracked
+    ref = np.full(len(bones), -1, dtype=np.int32)
+    d = pos[bones[:, 1]] - pos[bones[:, 0]]
+    length = np.linalg.norm(d, axis=1)
+    ok = tracked[bones[:, 0]] & tracked[bones[:, 1]] & (length > 1e-9)
+    u = d / np.where(length > 1e-9, length, 1.0)[:, None]
+    for b in np.flatnonzero(ok):
+        shares = np.isin(bones[:, 0], bones[b]) | np.isin(bones[:, 1], bones[b])
+        shares[b] = False
+        cand = np.flatnonzero(shares & ok)
+        if cand.size == 0:
+            continue
+        sine = np.linalg.norm(np.cross(u[cand], u[b]), axis=1)
+        best = np.argmax(sine)
+        if sine[best] >= min_sine:
+            ref[b] = cand[best]
+    return ref
+
+
+def bone_rotations(bind: Skeleton, frame: Skeleton, reference: np.ndarray) -> np.ndarray:
+    """(B, 3, 3) rotation of every bone of the model from the bind pose to `frame`.
+
+    A bone with a twist reference turns as the frame spanned by it and that neighbour; a bone
+    without one (a straight arm in a T-pose) carries its parent bone's rotation, corrected by the
+    minimal rotation that aligns the result with its own direction; a bone with neither turns by the
+    minimal rotation alone. Under a rigid motion of the whole skeleton every bone gets exactly that
+    rotation.
+    """
+    bones = frame.model.bones
+
+    def unit(v):
+        n = np.linalg.norm(v, axis=-1, keepdims=True)
+        return v / np.where(n > 1e-12, n, 1.0), n[..., 0] > 1e-12
+
+    u0, _ = unit(bind.positions[bones[:, 1]] - bind.positions[bones[:, 0]])
+    u1, ok1 = unit(frame.positions[bones[:, 1]] - frame.positions[bones[:, 0]])
+    ok1 &= frame.tracked[bones[:, 0]] & frame.tracked[bones[:, 1]]
+    u1 = np.where(ok1[:, None], u1, u0)
+    rot = minimal_rotation(u0, u1)
+    has = reference >= 0
+    if has.any():
+        rb = bones[reference[has]]
+        tracked = frame.tracked[rb[:, 0]] & frame.tracked[rb[:, 1]] & ok1[has]
+        r0 = bind.positions[rb[:, 1]] - bind.positions[rb[:, 0]]
+        r1 = frame.positions[rb[:, 1]] - frame.positions[rb[:, 0]]
+        w0, ok_w0 = unit(r0 - np.einsum("ni,ni->n", r0, u0[has])[:, None] * u0[has])
+        w1, ok_w1 = unit(r1 - np.einsum("ni,ni->n", r1, u1[has])[:, None] * u1[has])
+        f0 = np.stack([u0[has], w0, np.cross(u0[has], w0)], axis=2)
+        f1 = np.stack([u1[has], w1, np.cross(u1[has], w1)], axis=2)
+        use = tracked & ok_w0 & ok_w1
+        sub = rot[has]
+        sub[use] = np.einsum("nij,nkj->nik", f1, f0)[use]
+        rot[has] = sub
+        has = has.copy()
+        has[np.flatnonzero(has)[~use]] = False
+    # parents come before children in the model's joint order, so one pass sees every parent first
+    parent_bone = {int(c): b for b, (_, c) in enumerate(bones)}
+    for b, (p, _) in enumerate(bones):
+        pb = parent_bone.get(int(p))
+        if has[b] or pb is None or not ok1[b]:
+            continue
+        carried = rot[pb] @ u0[b]
+        rot[b] = minimal_rotation(carried, u1[b]) @ rot[pb]
+    return rot
 
 
 def minimal_rotation(a: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -164,8 +242,9 @@ def minimal_rotation(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 def constraint_targets(att: SkeletonAttachment, frame: Skeleton) -> tuple[np.ndarray, np.ndarray]:
     """Targets q_ℓ (L, 3) for a new frame and the (L,) mask of constraints still tracked.
 
-    Joints follow their joint. A bone sample turns with its bone by the minimal rotation from the
-    bind direction to the current one, moves with the parent joint, and slides along the bone with
+    Joints follow their joint. A bone sample turns with its bone (the minimal rotation from the
+    bind direction to the current one, with the twist taken from a neighbouring bone where there
+    is one), moves with the parent joint, and slides along the bone with
     its length (ours: so samples near the child joint stay with it when tracked lengths vary).
     """
     n = len(att.constraints)
@@ -187,8 +266,7 @@ def constraint_targets(att: SkeletonAttachment, frame: Skeleton) -> tuple[np.nda
         l1 = np.linalg.norm(d1, axis=1)
         good &= l1 > 1e-9
         u0 = d0 / l0[:, None]
-        u1 = np.where(good[:, None], d1 / np.where(l1 > 1e-9, l1, 1.0)[:, None], u0)
-        rot = minimal_rotation(u0, u1)
+        rot = bone_rotations(att.bind, frame, att.twist_reference)[att.bone[bs]]
         off = att.offset[bs]
         axial = np.einsum("ni,ni->n", off, u0)
         radial = off - axial[:, None] * u0

@@ -1,0 +1,115 @@
+"""TSDF fusion (SPEC §5): each depth frame updates a truncated signed distance by a weighted running average.
+
+    D(x) <- (W(x) D(x) + d(x)) / (W(x) + 1),   W(x) <- W(x) + 1
+
+where d(x) in [-1, 1] is the signed distance of voxel x to the surface seen along its camera ray, divided by the
+truncation distance (`trunc_voxels` voxels). Storage is Open3D's sparse `t.geometry.VoxelBlockGrid` (hashed 8^3
+blocks), which integrates, ray casts and runs marching cubes on the CPU. (Open3D 0.20's legacy
+ScalableTSDFVolume extracts nothing; the tensor grid works in 0.19 and 0.20.)
+
+Poses are camera-to-world (4, 4) float64; cameras look down +z with y down (OpenCV / Open3D convention).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .frames import Intrinsics
+
+
+def open3d():
+    """Import Open3D, the optional `scan` extra, with an install hint instead of a bare ImportError."""
+    try:
+        import open3d as o3d
+    except ImportError:
+        from ..errors import BadScanError
+        raise BadScanError("scanning needs Open3D: pip install 'kinetre[scan]'") from None
+    return o3d
+
+
+@dataclass(frozen=True)
+class Voxels:
+    """Every allocated voxel of a TSDF volume.
+
+    keys : (N, 3) int64 integer voxel coordinates (voxel centre = keys * voxel_size)
+    tsdf : (N,) float32 truncated signed distance in [-1, 1] (positive = free space in front of the surface)
+    weight : (N,) float32 number of observations (0 = never seen)
+    """
+
+    keys: np.ndarray
+    tsdf: np.ndarray
+    weight: np.ndarray
+    voxel_size: float
+
+
+class TSDFVolume:
+    """A sparse TSDF with colour. `voxel_size` in metres; truncation = trunc_voxels * voxel_size."""
+
+    def __init__(self, voxel_size: float, trunc_voxels: float = 6.0, depth_max: float = 3.0,
+                 block_resolution: int = 8, block_count: int = 20000):
+        o3d = open3d()
+        self._o3d = o3d
+        self._core = o3d.core
+        c = o3d.core
+        self.voxel_size = float(voxel_size)
+        self.trunc_voxels = float(trunc_voxels)
+        self.depth_max = float(depth_max)
+        self.grid = o3d.t.geometry.VoxelBlockGrid(
+            ("tsdf", "weight", "color"), (c.float32, c.float32, c.float32), ((1), (1), (3)),
+            self.voxel_size, block_resolution, block_count, c.Device("CPU:0"))
+        self.frames = 0
+
+    # --- Open3D conversions (depth in metres everywhere, so depth_scale = 1) ---
+    def _image(self, array: np.ndarray):
+        return self._o3d.t.geometry.Image(self._core.Tensor(np.ascontiguousarray(array)))
+
+    def _tensor(self, array: np.ndarray):
+        return self._core.Tensor(np.ascontiguousarray(array, dtype=np.float64))
+
+    def integrate(self, color: np.ndarray, depth: np.ndarray, camera: Intrinsics, pose: np.ndarray) -> None:
+        """Fuse one frame: color (H, W, 3) uint8, depth (H, W) float32 metres, pose (4, 4) camera-to-world."""
+        k, extrinsic = self._tensor(camera.matrix), self._tensor(np.linalg.inv(pose))
+        depth_image = self._image(depth.astype(np.float32))
+        color_image = self._image(color.astype(np.float32) / 255.0)
+        blocks = self.grid.compute_unique_block_coordinates(depth_image, k, extrinsic, 1.0, self.depth_max,
+                                                            self.trunc_voxels)
+        self.grid.integrate(blocks, depth_image, color_image, k, extrinsic, 1.0, self.depth_max, self.trunc_voxels)
+        self.frames += 1
+
+    def raycast(self, camera: Intrinsics, pose: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Render the model from `pose`: (colour (H, W, 3) float32 in [0, 1], depth (H, W) float32 metres, 0 = none).
+
+        The raycast of the fused model is the reference that frame-to-model tracking aligns to.
+        """
+        k, extrinsic = self._tensor(camera.matrix), self._tensor(np.linalg.inv(pose))
+        blocks = self.grid.hashmap().key_tensor()
+        if blocks.shape[0] == 0:
+            h, w = camera.height, camera.width
+            return np.zeros((h, w, 3), np.float32), np.zeros((h, w), np.float32)
+        out = self.grid.ray_cast(blocks, k, extrinsic, camera.width, camera.height, ["depth", "color"],
+                                 1.0, 0.1, self.depth_max, 1.0, self.trunc_voxels)
+        depth = out["depth"].numpy()[..., 0].copy()
+        depth[~np.isfinite(depth)] = 0.0
+        return np.clip(out["color"].numpy(), 0.0, 1.0).astype(np.float32), depth
+
+    def voxels(self) -> Voxels:
+        """All allocated voxels with their integer coordinates, TSDF and weight."""
+        centres, flat = self.grid.voxel_coordinates_and_flattened_indices()
+        flat = flat.numpy()
+        keys = np.round(centres.numpy() / self.voxel_size).astype(np.int64)
+        tsdf = self.grid.attribute("tsdf").numpy().reshape(-1)[flat]
+        weight = self.grid.attribute("weight").numpy().reshape(-1)[flat]
+        return Voxels(keys, tsdf.astype(np.float32), weight.astype(np.float32), self.voxel_size)
+
+    def triangle_mesh(self, weight_threshold: float = 1.0) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Marching cubes on the zero level set: (vertices (V, 3) float64 m, faces (F, 3) int64, colors (V, 3) float32)."""
+        if self.grid.hashmap().size() == 0:
+            return np.zeros((0, 3)), np.zeros((0, 3), np.int64), np.zeros((0, 3), np.float32)
+        mesh = self.grid.extract_triangle_mesh(weight_threshold=weight_threshold)
+        vertices = mesh.vertex.positions.numpy().astype(np.float64)
+        faces = mesh.triangle.indices.numpy().astype(np.int64) if "indices" in mesh.triangle \
+            else np.zeros((0, 3), np.int64)
+        colors = mesh.vertex.colors.numpy().astype(np.float32) if "colors" in mesh.vertex \
+            else np.full((len(vertices), 3), 0.5, np.float32)
+        return vertices, faces.reshape(-1, 3), np.clip(colors, 0.0, 1.0)

@@ -1,0 +1,128 @@
+"""Gauss-Newton/LM: exact on rigid motions, monotone energy, tracking loss, rigidity on bridges."""
+import dataclasses
+
+import numpy as np
+import pytest
+import trimesh
+from scipy.spatial.transform import Rotation
+
+import kinetre
+from kinetre.deform.constraints import PointConstraints
+from kinetre.deform.energy import EnergyWeights
+from kinetre.deform.normal_equations import NormalEquations
+from kinetre.deform.solver import GaussNewton, SolverSettings
+from kinetre.mesh.load import mesh_from_trimesh
+
+
+def identity_x(n):
+    x = np.zeros((n, 12))
+    x[:, [0, 4, 8]] = 1.0
+    return x
+
+
+def node_constraints(graph, node_ids):
+    """Constraints sitting on graph nodes, carried by their 4 nearest nodes (Eq. 2 falloff)."""
+    p = graph.nodes[node_ids]
+    d = np.linalg.norm(p[:, None] - graph.nodes[None], axis=2)
+    order = np.argsort(d, axis=1)[:, :5]
+    dd = np.take_along_axis(d, order, axis=1)
+    w = 1 - dd[:, :4] / dd[:, 4:5]
+    w /= w.sum(axis=1, keepdims=True)
+    return PointConstraints(p, order[:, :4].astype(np.int32), w)
+
+
+@pytest.fixture(scope="module")
+def armadillo(data_dir):
+    m = kinetre.load_mesh(data_dir / "meshes" / "armadillo.obj")
+    return m, kinetre.build_graph(m, nodes=128, seed=0)
+
+
+@pytest.mark.parametrize("angles", [(20, 30, -10), (0, 90, 0), (60, -45, 30)])
+def test_rigid_motion_of_all_constraints_is_reproduced_exactly(armadillo, angles):
+    m, g = armadillo
+    cons = node_constraints(g, np.arange(0, g.node_count, 5))
+    rot = Rotation.from_euler("xyz", angles, degrees=True).as_matrix()
+    shift = np.array([0.3, -0.2, 0.5])
+    ne = NormalEquations.build(g.nodes, g.edges, g.edges[g.bridges], cons, EnergyWeights())
+    solver = GaussNewton(ne, SolverSettings(max_iterations=30))
+    rep = solver.solve(identity_x(g.node_count), cons.points @ rot.T + shift, np.ones(len(cons)))
+    pose = kinetre.GraphPose(rep.x[:, :9].reshape(-1, 3, 3), rep.x[:, 9:])
+    mats = pose.node_matrices(g.nodes)
+    assert np.abs(mats[:, :3, :3] - rot).max() < 1e-6
+    assert np.abs(mats[:, :3, 3] - shift).max() < 1e-6
+    v = kinetre.skin(m, g, pose)
+    # float32 weights sum to 1 within 1.2e-7: that bounds the vertex error relative to their size
+    assert np.abs(v - (m.vertices @ rot.T + shift)).max() < 1e-6 * max(1, np.abs(m.vertices).max())
+
+
+def test_energy_never_increases_and_converges_within_ten(armadillo):
+    m, g = armadillo
+    top = np.flatnonzero(g.nodes[:, 1] > np.percentile(g.nodes[:, 1], 80))
+    bottom = np.flatnonzero(g.nodes[:, 1] < np.percentile(g.nodes[:, 1], 20))
+    cons = node_constraints(g, np.concatenate([top, bottom]))
+    # bend: the top turns 40° about z around the centre, the bottom stays
+    rot = Rotation.from_euler("z", 40, degrees=True).as_matrix()
+    c = g.nodes.mean(axis=0)
+    targets = cons.points.copy()
+    targets[:len(top)] = (cons.points[:len(top)] - c) @ rot.T + c
+    ne = NormalEquations.build(g.nodes, g.edges, g.edges[g.bridges], cons, EnergyWeights())
+    rep = GaussNewton(ne).solve(identity_x(g.node_count), targets, np.ones(len(cons)))
+    e = np.array(rep.energies)
+    assert np.all(np.diff(e) < 0)
+    assert rep.iterations <= 10
+    assert e[-1] < 0.05 * e[0]
+    # converged: another solve from the result takes no step
+    rep2 = GaussNewton(ne).solve(rep.x, targets, np.ones(len(cons)))
+    assert rep2.energy <= rep.energy and (rep.energy - rep2.energy) <= 1e-3 * rep.energy
+
+
+def test_inactive_constraints_drop_out(armadillo):
+    m, g = armadillo
+    cons = node_constraints(g, np.arange(0, g.node_count, 4))
+    ne = NormalEquations.build(g.nodes, g.edges, g.edges[g.bridges], cons, EnergyWeights())
+    targets = cons.points + [0.1, 0, 0]
+    active = np.ones(len(cons))
+    targets[::2] = 1e6  # wildly wrong, but inactive
+    active[::2] = 0.0
+    rep = GaussNewton(ne).solve(identity_x(g.node_count), targets, active)
+    moved = np.asarray(rep.x[:, 9:])
+    assert np.all(np.isfinite(rep.x)) and np.abs(moved).max() < 1.0
+    assert np.allclose(moved.mean(axis=0), [0.1, 0, 0], atol=0.02)
+
+
+def _chair():
+    """A seat and two legs hanging under it by a gap: separate components, joined by MST bridges."""
+    def box(size, centre):
+        b = trimesh.creation.box(size)
+        v, f = trimesh.remesh.subdivide_to_size(b.vertices, b.faces, max_edge=0.05)
+        return trimesh.Trimesh(v + centre, f)
+    seat = box([1.0, 0.1, 0.6], [0, 0.95, 0])
+    leg_a = box([0.1, 0.6, 0.1], [-0.35, 0.35, 0])
+    leg_b = box([0.1, 0.6, 0.1], [0.35, 0.35, 0])
+    return mesh_from_trimesh(trimesh.util.concatenate([seat, leg_a, leg_b]))
+
+
+def test_unconstrained_leg_stays_rigid_only_with_rigidity_term():
+    m = _chair()
+    g = kinetre.build_graph(m, nodes=200, seed=1)
+    leg_b = np.flatnonzero((g.nodes[:, 0] > 0.25) & (g.nodes[:, 1] < 0.75))
+    # leg B hangs on the rest by bridge edges only
+    touching = np.isin(g.edges, leg_b).sum(axis=1) == 1
+    assert touching.any() and g.bridges[touching].all()
+    driven = np.setdiff1d(np.arange(g.node_count), leg_b)
+    cons = node_constraints(g, driven)
+    # the seat and leg A turn 50° about the vertical axis: leg B is held by bridges only
+    rot = Rotation.from_euler("y", 50, degrees=True).as_matrix()
+    targets = cons.points @ rot.T
+    results = {}
+    for w_rig in (1.0, 0.0):
+        ne = NormalEquations.build(g.nodes, g.edges, g.edges[g.bridges], cons, EnergyWeights(rig=w_rig))
+        rep = GaussNewton(ne, SolverSettings(max_iterations=20)).solve(identity_x(g.node_count), targets,
+                                                                     np.ones(len(cons)))
+        pose = kinetre.GraphPose(rep.x[:, :9].reshape(-1, 3, 3), rep.x[:, 9:])
+        v = kinetre.skin(m, g, pose)
+        on_b = (m.vertices[:, 0] > 0.25) & (m.vertices[:, 1] < 0.75)
+        results[w_rig] = np.linalg.norm(v[on_b] - m.vertices[on_b] @ rot.T, axis=1).max()
+    size = m.diagonal
+    assert results[1.0] < 0.02 * size, results          # follows the chair rigidly
+    assert results[0.0] > 2 * results[1.0], results     # without E_rig it swings free (Fig. 4 f)

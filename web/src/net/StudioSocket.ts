@@ -1,0 +1,65 @@
+// One WebSocket to the studio server: sends JSON commands and skeleton frames, dispatches what comes back.
+// Reconnects after a drop; skeleton frames sent while the socket is busy are dropped (the newest wins).
+import { decodeTransforms, type ServerMessage, type TransformBlock } from './protocol';
+
+export interface SocketHandlers {
+  onMessage(message: ServerMessage): void;
+  onTransforms(block: TransformBlock): void;
+  onConnection(open: boolean): void;
+}
+
+export class StudioSocket {
+  client = '';
+  private ws: WebSocket | null = null;
+  private closed = false;
+  sentFrames = 0;
+  droppedFrames = 0;
+
+  constructor(private readonly url: string, private readonly handlers: SocketHandlers) {}
+
+  connect(): void {
+    const ws = new WebSocket(this.url);
+    ws.binaryType = 'arraybuffer';
+    ws.onopen = () => this.handlers.onConnection(true);
+    ws.onclose = () => {
+      this.handlers.onConnection(false);
+      if (!this.closed) setTimeout(() => this.connect(), 1000);
+    };
+    ws.onmessage = (event: MessageEvent) => {
+      if (event.data instanceof ArrayBuffer) {
+        const block = decodeTransforms(event.data);
+        if (block) this.handlers.onTransforms(block);
+        return;
+      }
+      const message = JSON.parse(event.data as string) as ServerMessage;
+      if (message.type === 'welcome') this.client = message.client;
+      this.handlers.onMessage(message);
+    };
+    this.ws = ws;
+  }
+
+  get open(): boolean {
+    return this.ws?.readyState === WebSocket.OPEN;
+  }
+
+  send(message: object): boolean {
+    if (!this.ws || this.ws.readyState !== WebSocket.OPEN) return false;
+    this.ws.send(JSON.stringify(message));
+    return true;
+  }
+
+  /** A skeleton frame; skipped when more than 64 kB are still waiting to go out (a slow link). */
+  sendFrame(message: object): void {
+    if (!this.ws || this.ws.readyState !== WebSocket.OPEN || this.ws.bufferedAmount > 65536) {
+      this.droppedFrames++;
+      return;
+    }
+    this.ws.send(JSON.stringify(message));
+    this.sentFrames++;
+  }
+
+  close(): void {
+    this.closed = true;
+    this.ws?.close();
+  }
+}

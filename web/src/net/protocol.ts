@@ -1,0 +1,73 @@
+// The studio wire format (mirrors src/kinetre/studio/protocol.py): JSON messages and binary transform blocks.
+
+export type Vec3 = [number, number, number];
+
+export interface SkeletonMessage {
+  type: 'skeleton';
+  client?: string;
+  seq: number;
+  t: number;
+  model: string;
+  positions: (Vec3 | null)[];
+  tracked: boolean[];
+}
+
+export interface UserState {
+  client: string;
+  possessing: boolean;
+  subset: string | string[] | null;
+  frames: number;
+  attached: number[];
+}
+
+export interface PlacementState {
+  scale: number;
+  position: Vec3;
+  yaw: number;
+  matrix: number[]; // column-major 4x4, as three.js Matrix4.elements
+}
+
+export interface SceneState {
+  type: 'state';
+  mesh: { id: number; name: string; url: string; nodes: number; vertices: number };
+  placement: PlacementState;
+  users: UserState[];
+  recording: boolean;
+  solve_ms: number | null;
+  error: string;
+}
+
+export type ServerMessage =
+  | { type: 'welcome'; client: string; channel: string }
+  | SceneState
+  | SkeletonMessage
+  | { type: 'error'; message: string }
+  | { type: 'stats'; client: string; received: number; malformed: number; last_seq: number };
+
+export interface TransformBlock {
+  seq: number;
+  meshId: number;
+  count: number;
+  tSource: number;
+  tOut: number;
+  rows: Float32Array; // count × 12: the top three rows of each node matrix, row-major
+}
+
+const HEADER_BYTES = 32;
+
+/** Decode a "KTX1" block; null when the bytes are not one. */
+export function decodeTransforms(buffer: ArrayBuffer): TransformBlock | null {
+  if (buffer.byteLength < HEADER_BYTES) return null;
+  const view = new DataView(buffer);
+  const magic = String.fromCharCode(view.getUint8(0), view.getUint8(1), view.getUint8(2), view.getUint8(3));
+  const count = view.getUint32(12, true);
+  if (magic !== 'KTX1' || buffer.byteLength !== HEADER_BYTES + 48 * count) return null;
+  return {
+    seq: view.getUint32(4, true),
+    meshId: view.getUint32(8, true),
+    count,
+    tSource: view.getFloat64(16, true),
+    tOut: view.getFloat64(24, true),
+    rows: new Float32Array(buffer, HEADER_BYTES, count * 12),
+  };
+}
