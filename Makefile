@@ -9,7 +9,7 @@ STATIC := src/kinetre/studio/static/index.html
 APT_STAMP := /var/lib/kinetre-apt-$(shell echo $(APT_PACKAGES) | md5sum | cut -c1-8)
 # Debian packages: CHOLMOD headers (scikit-sparse), the browser for tests, ffmpeg for video,
 # festival voices for speech fixtures, nats-server for the network layer.
-APT_PACKAGES := libsuitesparse-dev build-essential chromium ffmpeg festival festvox-kallpc16k festvox-us-slt-hts sox espeak-ng nats-server
+APT_PACKAGES := libsuitesparse-dev build-essential chromium ffmpeg libegl1 libgl1-mesa-dri festival festvox-kallpc16k festvox-us-slt-hts sox espeak-ng nats-server
 export NUMBA_CACHE_DIR := $(CURDIR)/.cache/numba
 
 .PHONY: setup studio test bench web apt python clean
@@ -40,7 +40,12 @@ $(WEB_STAMP): web/package.json
 	cd web && npm ci --no-audit --no-fund
 	touch $@
 
-setup: python web
+setup: python web tests/export/node/node_modules/.kinetre-installed
+
+# the Khronos glTF validator for tests/export (npm gltf-validator, pinned by its package-lock.json)
+tests/export/node/node_modules/.kinetre-installed: tests/export/node/package-lock.json
+	cd tests/export/node && npm ci --no-audit --no-fund
+	touch $@
 
 studio: setup
 	$(VENV)/bin/kinetre studio

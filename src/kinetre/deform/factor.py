@@ -35,16 +35,23 @@ class ReusedCholesky:
                 raise ImportError("scikit-sparse is not installed (pip install 'kinetre[cholmod]')")
             self._factor = analyze(pattern, mode="simplicial", ordering_method="amd")
 
-    def solve(self, matrix: csc_matrix, rhs: np.ndarray) -> np.ndarray:
+    def factorise(self, matrix: csc_matrix) -> None:
+        """Numeric factorisation of `matrix` (same pattern as at construction)."""
         if self.backend == "cholmod":
             try:
                 self._factor.cholesky_inplace(matrix)
             except CholmodNotPositiveDefiniteError:
                 raise NotPositiveDefinite() from None
-            return self._factor(rhs)
+            return
         from scipy.sparse.linalg import splu
         try:
-            return splu(matrix, permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0,
-                        options={"SymmetricMode": True}).solve(rhs)
+            self._lu = splu(matrix, permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0,
+                            options={"SymmetricMode": True})
         except RuntimeError:
             raise NotPositiveDefinite() from None
+
+    def solve(self, matrix: csc_matrix | None, rhs: np.ndarray) -> np.ndarray:
+        """Solve with `matrix` factorised first, or with the last factor when `matrix` is None."""
+        if matrix is not None:
+            self.factorise(matrix)
+        return self._factor(rhs) if self.backend == "cholmod" else self._lu.solve(rhs)

@@ -135,20 +135,25 @@ class NormalEquations:
         return float(w.rot * r_rot @ r_rot + w.rig * (r_rig @ r_rig + r_gap @ r_gap)
                      + w.reg * r_reg @ r_reg + w.con * r_con @ r_con)
 
-    def system(self, x: np.ndarray, parts, linear_data: np.ndarray, active: np.ndarray):
-        """(JᵀJ data on the pattern, gradient Jᵀr) at x; `linear_data` = const + constraint data."""
+    def system(self, x: np.ndarray, parts, linear_data: np.ndarray | None, active: np.ndarray):
+        """(JᵀJ data on the pattern, gradient Jᵀr) at x; `linear_data` = const + constraint data.
+
+        With `linear_data` None only the gradient is formed (the data is returned as None): a step
+        with a reused factor needs no new JᵀJ.
+        """
         R = x[:, :9].reshape(-1, 3, 3)
         r_rot, r_rig, r_reg, r_gap, r_con = parts
         w = self.weights
-        data = linear_data.copy()
+        hessian = linear_data is not None
+        data = linear_data.copy() if hessian else np.zeros(1)
         grad = np.zeros(self.n)
-        _add_rotation(data, grad, self.rot_pos, R, r_rot, w.rot)
-        _add_rigidity(data, grad, self.rig_pos, self.bridges, R, r_rig, w.rig)
+        _add_rotation(data, grad, self.rot_pos, R, r_rot, w.rot, hessian)
+        _add_rigidity(data, grad, self.rig_pos, self.bridges, R, r_rig, w.rig, hessian)
         grad += w.reg * (self.j_reg.T @ r_reg)
         grad += w.con * (self.j_con.T @ (r_con * np.repeat(active, 3)))
         if len(self.bridges):
             grad += w.rig * (self.j_gap.T @ r_gap)
-        return data, grad
+        return (data if hessian else None), grad
 
     def matrix(self, data: np.ndarray) -> csc_matrix:
         # int32 indices: CHOLMOD's int interface takes them without a copy
@@ -185,7 +190,7 @@ def _nonlinear_residuals(R, bridges):
 
 
 @njit(cache=True)
-def _add_rotation(data, grad, rot_pos, R, r_rot, w):
+def _add_rotation(data, grad, rot_pos, R, r_rot, w, hessian):
     jac = np.zeros((6, 9))
     for j in range(R.shape[0]):
         jac[:] = 0.0
@@ -200,6 +205,8 @@ def _add_rotation(data, grad, rot_pos, R, r_rot, w):
             for r in range(6):
                 gu += jac[r, u] * r_rot[6 * j + r]
             grad[12 * j + u] += w * gu
+            if not hessian:
+                continue
             for v in range(9):
                 s = 0.0
                 for r in range(6):
@@ -208,7 +215,7 @@ def _add_rotation(data, grad, rot_pos, R, r_rot, w):
 
 
 @njit(cache=True)
-def _add_rigidity(data, grad, rig_pos, bridges, R, r_rig, w):
+def _add_rigidity(data, grad, rig_pos, bridges, R, r_rig, w, hessian):
     jac = np.zeros((9, 18))
     for e in range(bridges.shape[0]):
         j = bridges[e, 0]
@@ -225,6 +232,8 @@ def _add_rigidity(data, grad, rig_pos, bridges, R, r_rig, w):
                 gu += jac[r, u] * r_rig[9 * e + r]
             node = j if u < 9 else k
             grad[12 * node + (u % 9)] += w * gu
+            if not hessian:
+                continue
             for v in range(18):
                 s = 0.0
                 for r in range(9):

@@ -17,7 +17,7 @@ def _skin(vertices, indices, weights, m):
         ox = oy = oz = 0.0
         for q in range(4):
             j = indices[v, q]
-            w = weights[v, q]
+            w = np.float64(weights[v, q])
             ox += w * (m[j, 0, 0] * x + m[j, 0, 1] * y + m[j, 0, 2] * z + m[j, 0, 3])
             oy += w * (m[j, 1, 0] * x + m[j, 1, 1] * y + m[j, 1, 2] * z + m[j, 1, 3])
             oz += w * (m[j, 2, 0] * x + m[j, 2, 1] * y + m[j, 2, 2] * z + m[j, 2, 3])
@@ -30,8 +30,10 @@ def _skin(vertices, indices, weights, m):
 def skin_vertices(vertices: np.ndarray, indices: np.ndarray, weights: np.ndarray,
                   node_matrices: np.ndarray) -> np.ndarray:
     """Linear blend of node affines: (V, 3) vertices, (V, 4) indices/weights, (N, 4, 4) matrices → (V, 3)."""
+    # weights stay float32 (as stored for glTF): a float64 copy of a 1M-vertex table costs more than
+    # the blend itself
     return _skin(np.ascontiguousarray(vertices, dtype=np.float64), np.ascontiguousarray(indices),
-                 np.ascontiguousarray(weights, dtype=np.float64), np.ascontiguousarray(node_matrices))
+                 np.ascontiguousarray(weights), np.ascontiguousarray(node_matrices, dtype=np.float64))
 
 
 def skin(mesh: Mesh, graph: DeformationGraph, pose: GraphPose) -> np.ndarray:

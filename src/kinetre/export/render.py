@@ -24,25 +24,12 @@ from ..errors import ExportError
 
 _MESH_VS = """
 #version 330
-uniform sampler2D nodes;          // (3 x N) RGBA32F: rows 0..2 of each node's affine matrix
 uniform mat4 view_proj;
-in vec3 in_pos; in vec3 in_normal; in vec2 in_uv; in vec4 in_color; in ivec4 in_joints; in vec4 in_weights;
+in vec3 in_pos; in vec3 in_normal; in vec2 in_uv; in vec4 in_color;
 out vec3 v_pos; out vec3 v_normal; out vec2 v_uv; out vec4 v_color;
 void main() {
-    vec4 r0 = vec4(0.0), r1 = vec4(0.0), r2 = vec4(0.0);
-    for (int k = 0; k < 4; ++k) {
-        int j = in_joints[k];
-        float w = in_weights[k];
-        r0 += w * texelFetch(nodes, ivec2(0, j), 0);
-        r1 += w * texelFetch(nodes, ivec2(1, j), 0);
-        r2 += w * texelFetch(nodes, ivec2(2, j), 0);
-    }
-    vec4 p = vec4(in_pos, 1.0);
-    vec3 world = vec3(dot(r0, p), dot(r1, p), dot(r2, p));
-    mat3 a = transpose(mat3(r0.xyz, r1.xyz, r2.xyz));   // blended linear part (columns from rows)
-    v_normal = transpose(inverse(a)) * in_normal;
-    v_pos = world; v_uv = in_uv; v_color = in_color;
-    gl_Position = view_proj * vec4(world, 1.0);
+    v_pos = in_pos; v_normal = in_normal; v_uv = in_uv; v_color = in_color;
+    gl_Position = view_proj * vec4(in_pos, 1.0);
 }
 """
 
@@ -194,10 +181,12 @@ class Camera:
 
 
 class MeshRenderer:
-    """Renders frames of one skinned mesh; create once per video, call `render(node_rows)` per frame."""
+    """Renders frames of one deforming mesh; create once per video, call `render(positions, normals)`
+    per frame. Faces, UVs, colours and the texture are uploaded once; per frame only the deformed
+    positions and normals change."""
 
-    def __init__(self, vertices, faces, normals, joints, weights, camera: Camera, size=(640, 480),
-                 uvs=None, colors=None, texture=None, shadow_size: int = 2048):
+    def __init__(self, vertex_count: int, faces, camera: Camera, size=(640, 480), uvs=None, colors=None,
+                 texture=None, shadow_size: int = 2048):
         try:
             import moderngl
         except ImportError as err:
@@ -210,10 +199,7 @@ class MeshRenderer:
         ctx = self.ctx
         self.size = tuple(int(s) for s in size)
         self.camera = camera
-        v = len(vertices)
-        self.node_count = int(np.max(joints)) + 1
-        self._node_tex = ctx.texture((3, max(self.node_count, 1)), 4, dtype="f4")
-        self._node_tex.filter = (moderngl.NEAREST, moderngl.NEAREST)
+        v = self.vertex_count = int(vertex_count)
 
         def buf(a, dtype):
             return ctx.buffer(np.ascontiguousarray(a, dtype=dtype).tobytes())
@@ -223,9 +209,10 @@ class MeshRenderer:
         uv = np.zeros((v, 2), np.float32) if uvs is None else np.asarray(uvs, np.float32)
         self._mesh_prog = ctx.program(vertex_shader=_MESH_VS, fragment_shader=_MESH_FS)
         self._depth_prog = ctx.program(vertex_shader=_MESH_VS, fragment_shader=_DEPTH_FS)
-        content = [(buf(vertices, "f4"), "3f", "in_pos"), (buf(normals, "f4"), "3f", "in_normal"),
-                   (buf(uv, "f4"), "2f", "in_uv"), (buf(color, "f4"), "4f", "in_color"),
-                   (buf(joints, "i4"), "4i", "in_joints"), (buf(weights, "f4"), "4f", "in_weights")]
+        self._positions = ctx.buffer(reserve=12 * v, dynamic=True)
+        self._normals = ctx.buffer(reserve=12 * v, dynamic=True)
+        content = [(self._positions, "3f", "in_pos"), (self._normals, "3f", "in_normal"),
+                   (buf(uv, "f4"), "2f", "in_uv"), (buf(color, "f4"), "4f", "in_color")]
         index = buf(faces, "i4")
 
         def vao(prog):
@@ -258,8 +245,6 @@ class MeshRenderer:
         self._out = ctx.framebuffer(color_attachments=[ctx.renderbuffer(self.size, 4)])
 
         f4 = lambda m: np.ascontiguousarray(m.T, dtype=np.float32).tobytes()  # column-major for GLSL
-        for prog in (self._mesh_prog, self._depth_prog):
-            prog["nodes"].value = 0
         self._depth_prog["view_proj"].write(f4(camera.light_view_proj))
         mp = self._mesh_prog
         mp["view_proj"].write(f4(camera.view_proj))
@@ -278,13 +263,13 @@ class MeshRenderer:
         gp["tile"].value = float(camera.tile)
         gp["sky"].value = SKY
 
-    def render(self, node_rows: np.ndarray) -> np.ndarray:
+    def render(self, positions: np.ndarray, normals: np.ndarray) -> np.ndarray:
         """One frame.
 
         Parameters
         ----------
-        node_rows : (N, 3, 4) float
-            Rows 0..2 of each node's matrix M_j (`GraphPose.node_matrices(nodes)[:, :3]`).
+        positions, normals : (V, 3) float
+            The deformed vertices and their normals (any length: normalised per pixel).
 
         Returns
         -------
@@ -293,8 +278,8 @@ class MeshRenderer:
         import moderngl
 
         ctx = self.ctx
-        self._node_tex.write(np.ascontiguousarray(node_rows, dtype=np.float32).tobytes())
-        self._node_tex.use(0)
+        self._positions.write(np.ascontiguousarray(positions, dtype=np.float32).tobytes())
+        self._normals.write(np.ascontiguousarray(normals, dtype=np.float32).tobytes())
         ctx.enable(moderngl.DEPTH_TEST)
         ctx.disable(moderngl.CULL_FACE)
 
@@ -307,7 +292,6 @@ class MeshRenderer:
         self._shadow_tex.use(1)
         self._albedo.use(2)
         self._ground_vao.render(moderngl.TRIANGLES)
-        self._node_tex.use(0)
         self._mesh_vao.render(moderngl.TRIANGLES)
 
         ctx.copy_framebuffer(self._out, self._msaa)

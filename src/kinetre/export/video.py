@@ -16,6 +16,7 @@ import numpy as np
 from PIL import Image, ImageDraw
 
 from ..deform.pose import GraphPose
+from ..deform.skinning import skin_vertices
 from ..errors import ExportError
 from ..graph.graph import DeformationGraph
 from ..mesh.mesh import Mesh
@@ -83,8 +84,8 @@ def write_video(path, mesh: Mesh, graph: DeformationGraph, poses: list[GraphPose
     texture = material_image(mesh.material) if mesh.uvs is not None else None
     if texture is not None:
         colors = np.full((len(mesh.vertices), 4), 255, np.uint8)   # the texture alone gives the colour
-    renderer = MeshRenderer(mesh.vertices, mesh.faces, mesh.normals, graph.vertex_nodes, graph.vertex_weights,
-                            camera, (width, height), uvs=mesh.uvs, colors=colors, texture=texture)
+    renderer = MeshRenderer(len(mesh.vertices), mesh.faces, camera, (width, height), uvs=mesh.uvs, colors=colors,
+                            texture=texture)
     rate = Fraction(fps).limit_denominator(1001)
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
@@ -96,7 +97,11 @@ def write_video(path, mesh: Mesh, graph: DeformationGraph, poses: list[GraphPose
     proc = subprocess.Popen(cmd, stdin=subprocess.PIPE, stderr=subprocess.PIPE)
     try:
         for k, pose in enumerate(poses):
-            frame = renderer.render(pose.node_matrices(graph.nodes)[:, :3])
+            m = pose.node_matrices(graph.nodes)
+            positions = skin_vertices(mesh.vertices, graph.vertex_nodes, graph.vertex_weights, m)
+            m[:, :3, 3] = 0.0               # normals follow the blended linear part only
+            normals = skin_vertices(mesh.normals, graph.vertex_nodes, graph.vertex_weights, m)
+            frame = renderer.render(positions, normals)
             if skeletons is not None and skeletons[k]:
                 frame = draw_skeletons(frame, skeletons[k], camera)
             proc.stdin.write(np.ascontiguousarray(frame).tobytes())

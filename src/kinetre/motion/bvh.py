@@ -339,20 +339,22 @@ def _key(name: str) -> str:
     return re.sub(r"[^a-z0-9]", "", name.rsplit(":", 1)[-1].lower())
 
 
-# Kinect joint -> file joint names, best first (after _key). "{s}" is "left"/"right", "{c}" is "l"/"r".
+# Kinect joint -> file joint names, best first (after _key): Kinect-20 itself (our BVH export), then
+# Mixamo, CMU, MocapBank and generic names. "{s}" is "left"/"right", "{c}" is "l"/"r".
 _CANDIDATES = {
-    "HipCenter": ["hips", "hip", "pelvis", "root"],
+    "HipCenter": ["hipcenter", "hips", "hip", "pelvis", "root"],
     "Spine": ["spine", "chest", "spine1", "lowerback", "torso"],
-    "ShoulderCenter": ["neck", "neck1", "neckbase", "spine3", "chest2", "upperchest", "spine2"],
+    "ShoulderCenter": ["shouldercenter", "neck", "neck1", "neckbase", "spine3", "chest2", "upperchest", "spine2"],
     "Head": ["head", "neck1end", "headtopend"],
-    "Shoulder": ["{s}arm", "{s}upperarm", "{c}shoulder", "{s}shoulder", "upperarm{c}", "{c}uparm"],
-    "Elbow": ["{s}forearm", "{s}lowerarm", "{c}elbow", "{s}elbow", "lowerarm{c}", "{c}forearm"],
-    "Wrist": ["{s}hand", "{c}wrist", "{s}wrist", "hand{c}", "{c}hand"],
-    "Hand": ["{s}handmiddle1", "{s}fingerbase", "{s}handindex1", "{s}handend", "{s}wristend", "{c}handend"],
-    "Hip": ["{s}upleg", "{s}thigh", "{s}upperleg", "{c}thigh", "{c}hip", "{s}hip", "upperleg{c}"],
-    "Knee": ["{s}leg", "{s}shin", "{s}lowerleg", "{c}knee", "{s}knee", "{c}shin", "lowerleg{c}"],
-    "Ankle": ["{s}foot", "{c}ankle", "{s}ankle", "foot{c}", "{c}foot"],
-    "Foot": ["{s}toebase", "{s}toe", "{c}toe", "{s}toes", "{s}footend", "{s}ankleend", "toe{c}"],
+    "Shoulder": ["shoulder{s}", "{s}arm", "{s}upperarm", "{c}shoulder", "{s}shoulder", "upperarm{c}", "{c}uparm"],
+    "Elbow": ["elbow{s}", "{s}forearm", "{s}lowerarm", "{c}elbow", "{s}elbow", "lowerarm{c}", "{c}forearm"],
+    "Wrist": ["wrist{s}", "{s}hand", "{c}wrist", "{s}wrist", "hand{c}", "{c}hand"],
+    "Hand": ["hand{s}", "{s}handmiddle1", "{s}fingerbase", "{s}handindex1", "{s}handend", "{s}wristend",
+             "{c}handend"],
+    "Hip": ["hip{s}", "{s}upleg", "{s}thigh", "{s}upperleg", "{c}thigh", "{c}hip", "{s}hip", "upperleg{c}"],
+    "Knee": ["knee{s}", "{s}leg", "{s}shin", "{s}lowerleg", "{c}knee", "{s}knee", "{c}shin", "lowerleg{c}"],
+    "Ankle": ["ankle{s}", "{s}foot", "{c}ankle", "{s}ankle", "foot{c}", "{c}foot"],
+    "Foot": ["foot{s}", "{s}toebase", "{s}toe", "{c}toe", "{s}toes", "{s}footend", "{s}ankleend", "toe{c}"],
 }
 # Must be found by name; the others may be derived from their neighbours.
 CORE = ("HipCenter", "ShoulderCenter", "Head", "ShoulderLeft", "ElbowLeft", "WristLeft", "HipLeft",

@@ -137,3 +137,27 @@ def load_take(path: str | os.PathLike, **options) -> Take:
         if name.endswith(ext):
             return reader(path, **options) if reader is _bvh else reader(path)
     raise BadMotionError(f"{path}: unknown motion format (expected one of {', '.join(READERS)})")
+
+
+def resample(take: Take, fps: float) -> Take:
+    """The take at another frame rate, positions interpolated linearly in time.
+
+    A joint is tracked in a new frame when it is tracked in both original frames around it. An integer
+    ratio down (120 -> 30 fps) just keeps every n-th frame, so those frames stay bit-exact.
+    """
+    if not (math.isfinite(fps) and fps > 0):
+        raise BadMotionError(f"{take.source or 'take'}: fps must be a positive number, got {fps!r}")
+    ratio = take.fps / fps
+    if round(ratio) >= 1 and abs(ratio - round(ratio)) < 1e-4 * ratio:
+        step = int(round(ratio))
+        return Take(take.model, take.positions[::step], take.tracked[::step], fps, take.source)
+    n = int(math.floor(take.duration * fps + 1e-9)) + 1
+    x = np.arange(n) * take.fps / fps  # position in original frames
+    i0 = np.minimum(np.floor(x).astype(int), len(take) - 1)
+    i1 = np.minimum(i0 + 1, len(take) - 1)
+    a = x - i0
+    exact = a < 1e-9  # on an original frame: its neighbour does not matter (nor its NaNs)
+    w = a[:, None, None]
+    pos = np.where(exact[:, None, None], take.positions[i0], (1 - w) * take.positions[i0] + w * take.positions[i1])
+    tracked = take.tracked[i0] & (take.tracked[i1] | exact[:, None])
+    return Take(take.model, pos, tracked, fps, take.source)

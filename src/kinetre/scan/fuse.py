@@ -25,6 +25,8 @@ def open3d():
     except ImportError:
         from ..errors import BadScanError
         raise BadScanError("scanning needs Open3D: pip install 'kinetre[scan]'") from None
+    # Open3D reports buffer reallocations as warnings on stdout; only real errors matter to a user.
+    o3d.utility.set_verbosity_level(o3d.utility.VerbosityLevel.Error)
     return o3d
 
 
@@ -83,7 +85,7 @@ class TSDFVolume:
         The raycast of the fused model is the reference that frame-to-model tracking aligns to.
         """
         k, extrinsic = self._tensor(camera.matrix), self._tensor(np.linalg.inv(pose))
-        blocks = self.grid.hashmap().key_tensor()
+        blocks = self._active_blocks()
         if blocks.shape[0] == 0:
             h, w = camera.height, camera.width
             return np.zeros((h, w, 3), np.float32), np.zeros((h, w), np.float32)
@@ -92,6 +94,11 @@ class TSDFVolume:
         depth = out["depth"].numpy()[..., 0].copy()
         depth[~np.isfinite(depth)] = 0.0
         return np.clip(out["color"].numpy(), 0.0, 1.0).astype(np.float32), depth
+
+    def _active_blocks(self):
+        # key_tensor() spans the whole buffer capacity; only active entries are real blocks.
+        hashmap = self.grid.hashmap()
+        return hashmap.key_tensor()[hashmap.active_buf_indices().to(self._core.int64)]
 
     def voxels(self) -> Voxels:
         """All allocated voxels with their integer coordinates, TSDF and weight."""

@@ -272,7 +272,7 @@ class Scene:
         if self.rig is not None:
             joints = getattr(self.rig, "attached_joints", None)
             if joints is not None:
-                per = joints if len(self.possessors) > 1 else [joints]
+                per = joints
                 attached = {c: np.asarray(j).tolist() for c, j in zip(self.possessors, per)}
         return {
             "type": "state",

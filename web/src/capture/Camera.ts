@@ -23,6 +23,7 @@ export class Camera {
       audio: false,
     });
     this.video.srcObject = this.stream;
+    this.video.classList.add('live');
     await this.video.play();
   }
 
@@ -30,6 +31,7 @@ export class Camera {
     this.stream?.getTracks().forEach((t) => t.stop());
     this.stream = null;
     this.video.srcObject = null;
+    this.video.classList.remove('live');
   }
 
   get aspect(): number {

@@ -1,0 +1,426 @@
+"""The `kinetre` command: thin wrappers over the API. Bad input -> one line on stderr and exit status 2."""
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+import time
+from pathlib import Path
+
+from .errors import KinetreError
+
+EPILOG = """examples:
+  kinetre animate chair.obj --motion walk.bvh -o chair_walk.glb
+  kinetre animate lamp.obj --motion walk.bvh --subset "HipCenter,right arm" -o lamp.mp4
+  kinetre animate spot.obj --motion take.kinetre.jsonl --fit --yaw 90 -o spot.glb
+  kinetre capture --video clip.mp4 -o take.kinetre.jsonl
+  kinetre capture --camera 0 --seconds 10 -o take.kinetre.jsonl
+  kinetre record walk.bvh -o walk.kinetre.jsonl
+  kinetre info walk.bvh
+  kinetre graph spot.obj --nodes 128 -o spot_graph.ply
+  kinetre studio spot.obj --port 8000
+"""
+
+MESH_EXTS = (".obj", ".ply", ".stl", ".off", ".glb", ".gltf")
+VIDEO_EXTS = (".mp4", ".mov", ".avi", ".mkv", ".webm")
+ANIMATE_OUTPUTS = (".glb", ".gltf", ".bvh", ".mp4", ".webm", ".kinetre.jsonl")
+
+
+class UsageError(KinetreError):
+    """A command-line argument that does not make sense (reported like any bad input)."""
+
+
+def _ext(path: str, choices) -> str:
+    low = path.lower()
+    for ext in sorted(choices, key=len, reverse=True):
+        if low.endswith(ext):
+            return ext
+    raise UsageError(f"{path}: unsupported output type (expected {', '.join(choices)})")
+
+
+def _frames(spec: str | None) -> slice:
+    if not spec:
+        return slice(None)
+    parts = spec.split(":")
+    try:
+        if len(parts) != 2:
+            raise ValueError
+        start, stop = (int(p) if p.strip() else None for p in parts)
+    except ValueError:
+        raise UsageError(f"--frames must be START:END (e.g. 0:60), got {spec!r}") from None
+    return slice(start, stop)
+
+
+def _subset(items: list[str] | None):
+    if not items:
+        return None
+    names = [n.strip() for item in items for n in item.split(",") if n.strip()]
+    return names[0] if len(names) == 1 else names
+
+
+def _bar(total: int, desc: str, quiet: bool):
+    from tqdm import tqdm
+    return tqdm(total=total, desc=desc, unit="frame", disable=quiet, file=sys.stderr, leave=False)
+
+
+def _load_motion(path: str, scale: float | None, as_kinect: bool = True):
+    from .motion.source import load_take
+    if scale is not None and not path.lower().endswith(".bvh"):
+        raise UsageError("--scale applies to BVH files only (their unit is unknown)")
+    if path.lower().endswith(".bvh"):
+        return load_take(path, scale=scale, as_kinect=as_kinect)
+    return load_take(path)
+
+
+# ---- animate ---------------------------------------------------------------------------------------
+
+def cmd_animate(args) -> int:
+    import numpy as np
+
+    import kinetre
+    from .motion.fit import fit_take
+    from .motion.source import resample
+
+    out_ext = _ext(args.output, ANIMATE_OUTPUTS)
+    if args.nodes < 2:
+        raise UsageError(f"--nodes must be at least 2, got {args.nodes}")
+    t0 = time.perf_counter()
+    mesh = kinetre.load_mesh(args.mesh)
+    take = _load_motion(args.motion, args.scale)
+    frames = _frames(args.frames)
+    take = take.slice(frames.start or 0, frames.stop)
+    fps = args.fps if args.fps is not None else min(take.fps, 30.0)
+    take = resample(take, fps)
+    if args.max_frames is not None:
+        take = take.slice(0, max(1, args.max_frames))
+    if not -len(take) <= args.bind_frame < len(take):
+        raise UsageError(f"--bind-frame {args.bind_frame} is outside the take's {len(take)} frames")
+    say = (lambda *a: None) if args.quiet else print
+    say(f"mesh {args.mesh}: {len(mesh.vertices)} vertices, {len(mesh.faces)} faces")
+    say(f"motion {args.motion}: {take.model.name}, {len(take.model.joints)} joints, {len(take)} frames "
+        f"at {take.fps:g} fps")
+
+    graph = kinetre.build_graph(mesh, nodes=args.nodes, seed=args.seed)
+    placement = fit_take(take, mesh, args.bind_frame, fit_mesh=args.fit, yaw=args.yaw)
+    placed = placement.take(take)
+    solve_graph = placement.graph(graph)
+    bind = placed.frame(args.bind_frame)
+    rig = kinetre.attach(solve_graph, bind, subset=_subset(args.subset))
+    att = rig.attachments[0]
+    joints = [take.model.joints[j] for j in rig.attached_joints[0]]
+    say(f"attached {len(joints)} joint(s) ({', '.join(joints) or 'none'}), {int((att.bone >= 0).sum())} bone "
+        f"samples, {len(rig.nodes_used)} of {graph.node_count} nodes (mesh scaled by {placement.mesh_scale:.4g} "
+        f"to the {bind.height:.2f} m skeleton)")
+
+    out_take = placed.transformed(placement.output_scale)
+    if out_ext in (".bvh", ".kinetre.jsonl"):
+        _write_skeleton(args.output, out_ext, out_take)
+    else:
+        poses = []
+        with _bar(len(placed), "solving", args.quiet) as bar:
+            for i in range(len(placed)):
+                poses.append(placement.output_pose(rig.solve(placed.frame(i))))
+                bar.update(1)
+        mesh_out = placement.mesh(mesh) if args.fit else mesh
+        graph_out = solve_graph if args.fit else graph
+        if out_ext in (".glb", ".gltf"):
+            from .export.gltf import write_gltf
+            write_gltf(args.output, mesh_out, graph_out, poses, take.fps)
+        else:
+            from .export.video import write_video
+            skeletons = [[out_take.frame(i)] for i in range(len(out_take))] if args.skeleton else None
+            with _bar(len(poses), "rendering", args.quiet) as bar:
+                write_video(args.output, mesh_out, graph_out, poses, take.fps, skeletons=skeletons,
+                            on_frame=lambda i: bar.update(1))
+        energy = np.array([p.energy for p in poses], dtype=float)
+        say(f"solved {len(poses)} frames, median energy {np.nanmedian(energy) if np.isfinite(energy).any() else float('nan'):.3g}")
+    say(f"wrote {args.output} ({len(take)} frames at {take.fps:g} fps, {time.perf_counter() - t0:.1f} s)")
+    return 0
+
+
+def _write_skeleton(path: str, ext: str, take) -> None:
+    if ext == ".bvh":
+        from .export.bvh import write_bvh
+        write_bvh(path, take.frames(), take.fps)
+    else:
+        from .motion.stream import write_stream
+        write_stream(path, take)
+
+
+# ---- capture / record ------------------------------------------------------------------------------
+
+def _quiet_mediapipe() -> None:
+    # MediaPipe's C++ side logs through glog/absl to stderr; keep the command's stderr for errors.
+    os.environ.setdefault("GLOG_minloglevel", "2")
+    os.environ.setdefault("TF_CPP_MIN_LOG_LEVEL", "2")
+
+
+def cmd_capture(args) -> int:
+    from .motion.capture import CaptureSettings, capture_camera, capture_video
+    from .motion.stream import TakeWriter
+    from .skeleton.models import KINECT20
+
+    _ext(args.output, (".kinetre.jsonl",))
+    _quiet_mediapipe()
+    settings = CaptureSettings(fov_degrees=args.fov, smooth=not args.no_smooth)
+    if args.video is not None:
+        take = capture_video(args.video, settings, max_frames=args.max_frames, progress=not args.quiet)
+        from .motion.stream import write_stream
+        write_stream(args.output, take)
+        tracked = take.tracked.any(axis=1).sum()
+        print(f"wrote {args.output}: {len(take)} frames at {take.fps:g} fps, a person in {tracked}")
+        return 0
+    try:
+        f = open(args.output, "w", encoding="utf-8")
+    except OSError as e:
+        raise UsageError(f"{args.output}: cannot write ({e.strerror})") from None
+    with f:
+        writer = TakeWriter(f, KINECT20, args.camera_fps, f"camera {args.camera}")
+        if not args.quiet:
+            print(f"recording camera {args.camera} to {args.output} (Ctrl+C to stop)", file=sys.stderr)
+        count = capture_camera(args.camera, writer.write, settings, seconds=args.seconds,
+                               max_frames=args.max_frames)
+    print(f"wrote {args.output}: {count} frames")
+    return 0
+
+
+def cmd_record(args) -> int:
+    from .motion.source import resample
+    from .motion.stream import write_stream
+
+    _ext(args.output, (".kinetre.jsonl",))
+    if args.source.lower().endswith(VIDEO_EXTS):
+        _quiet_mediapipe()
+    take = _load_motion(args.source, args.scale, as_kinect=not args.own_skeleton)
+    if args.fps is not None:
+        take = resample(take, args.fps)
+    write_stream(args.output, take)
+    print(f"wrote {args.output}: {take.model.name}, {len(take.model.joints)} joints, {len(take)} frames "
+          f"at {take.fps:g} fps")
+    return 0
+
+
+# ---- info / graph ----------------------------------------------------------------------------------
+
+def cmd_info(args) -> int:
+    path = args.path
+    low = path.lower()
+    if low.endswith(".bvh"):
+        _info_bvh(path)
+    elif low.endswith(".jsonl"):
+        from .motion.stream import read_stream
+        _info_take(read_stream(path), "recorded take")
+    elif low.endswith(VIDEO_EXTS):
+        _info_video(path)
+    else:
+        _info_mesh(path)
+    return 0
+
+
+def _info_take(take, kind: str) -> None:
+    import numpy as np
+    first = take.frame(0)
+    print(f"{take.source}: {kind}, skeleton {take.model.name} ({len(take.model.joints)} joints), {len(take)} frames "
+          f"at {take.fps:g} fps ({take.duration:.2f} s)")
+    print(f"  tracked: {100 * take.tracked.mean():.1f} % of joint-frames; first-frame height {first.height:.2f} m")
+    lo, hi = np.nanmin(take.positions, axis=(0, 1)), np.nanmax(take.positions, axis=(0, 1))
+    print(f"  extent (m): x {lo[0]:.2f}..{hi[0]:.2f}  y {lo[1]:.2f}..{hi[1]:.2f}  z {lo[2]:.2f}..{hi[2]:.2f}")
+    print(f"  joints: {', '.join(take.model.joints)}")
+
+
+def _info_bvh(path: str) -> None:
+    import numpy as np
+
+    from .motion.bvh import detect_unit, kinect_map, load_bvh, parse_bvh, rest_positions
+    try:
+        text = Path(path).read_text(encoding="utf-8", errors="replace")
+    except FileNotFoundError:
+        raise UsageError(f"{path}: no such file") from None
+    clip = parse_bvh(text, path)
+    per, unit = detect_unit(float(np.ptp(rest_positions(clip), axis=0).max()))
+    n_end = int(clip.end_sites.sum())
+    print(f"{path}: BVH, {len(clip.names) - n_end} joints + {n_end} end sites, {clip.motion.shape[1]} channels, "
+          f"{len(clip.motion)} frames at {clip.fps:g} fps ({(len(clip.motion) - 1) * clip.frame_time:.2f} s)")
+    print(f"  unit: {unit} ({per:.4g} m per file unit)")
+    mapping = kinect_map(clip.names, clip.parents)
+    if mapping is None:
+        print("  Kinect-20 map: no (core joints not found by name): drives a mesh by its own bones")
+    else:
+        print("  Kinect-20 map: " + ", ".join(f"{k}<-{v}" for k, v in mapping[1].items()))
+    _info_take(load_bvh(path), "as loaded")
+
+
+def _info_video(path: str) -> None:
+    import cv2
+    if not os.path.exists(path):
+        raise UsageError(f"{path}: no such file")
+    cap = cv2.VideoCapture(path)
+    if not cap.isOpened():
+        raise UsageError(f"{path}: not a readable video")
+    w, h = int(cap.get(cv2.CAP_PROP_FRAME_WIDTH)), int(cap.get(cv2.CAP_PROP_FRAME_HEIGHT))
+    n, fps = int(cap.get(cv2.CAP_PROP_FRAME_COUNT)), cap.get(cv2.CAP_PROP_FPS)
+    cap.release()
+    print(f"{path}: video, {w}x{h}, {n} frames at {fps:g} fps ({n / fps if fps else 0:.2f} s); "
+          f"`kinetre capture --video` tracks the person in it")
+
+
+def _info_mesh(path: str) -> None:
+    import numpy as np
+
+    import kinetre
+    mesh = kinetre.load_mesh(path)
+    lo, hi = mesh.bounds
+    size = hi - lo
+    print(f"{path}: mesh, {len(mesh.vertices)} vertices, {len(mesh.faces)} faces, area {mesh.area:.4g}")
+    print(f"  bounding box {size[0]:.4g} x {size[1]:.4g} x {size[2]:.4g} (diagonal {mesh.diagonal:.4g}), "
+          f"min {np.round(lo, 4).tolist()}")
+    print(f"  UVs: {'yes' if mesh.uvs is not None else 'no'}, vertex colours: "
+          f"{'yes' if mesh.colors is not None else 'no'}, material: {'yes' if mesh.material is not None else 'no'}")
+
+
+def cmd_graph(args) -> int:
+    import kinetre
+    _ext(args.output, (".ply",))
+    mesh = kinetre.load_mesh(args.mesh)
+    graph = kinetre.build_graph(mesh, nodes=args.nodes, seed=args.seed)
+    write_graph_ply(args.output, graph)
+    print(f"wrote {args.output}: {graph.node_count} nodes, {len(graph.edges)} edges "
+          f"({int(graph.bridges.sum())} rigid/bridge), radius {graph.radius:.4g}")
+    return 0
+
+
+def write_graph_ply(path: str, graph) -> None:
+    """ASCII PLY: nodes as vertices (with normals), edges as `edge` elements with a `bridge` flag."""
+    lines = ["ply", "format ascii 1.0", "comment kinetre deformation graph",
+             f"element vertex {graph.node_count}", "property double x", "property double y", "property double z",
+             "property double nx", "property double ny", "property double nz",
+             f"element edge {len(graph.edges)}", "property int vertex1", "property int vertex2",
+             "property uchar bridge", "end_header"]
+    lines += [" ".join(repr(float(c)) for c in (*p, *n)) for p, n in zip(graph.nodes, graph.normals)]
+    lines += [f"{a} {b} {int(br)}" for (a, b), br in zip(graph.edges.tolist(), graph.bridges.tolist())]
+    try:
+        Path(path).write_text("\n".join(lines) + "\n", encoding="ascii")
+    except OSError as e:
+        raise UsageError(f"{path}: cannot write ({e.strerror})") from None
+
+
+def cmd_studio(args) -> int:
+    from .studio.app import run_studio
+    run_studio(args.mesh, host=args.host, port=args.port, open_browser=not args.no_browser)
+    return 0
+
+
+# ---- parser ----------------------------------------------------------------------------------------
+
+def _add_scan(sub) -> None:
+    """`kinetre scan` comes from kinetre.scan.cli; without open3d it explains how to install it."""
+    try:
+        from .scan.cli import add_scan_parser
+    except ModuleNotFoundError as e:
+        if e.name not in ("open3d", f"{__package__}.scan.cli"):
+            raise
+        missing = e.name
+        p = sub.add_parser("scan", help="reconstruct a mesh from RGB-D frames (needs open3d)")
+        p.add_argument("rest", nargs=argparse.REMAINDER)
+
+        def unavailable(args):
+            if missing == "open3d":
+                raise UsageError("kinetre scan needs open3d: pip install 'kinetre[scan]'")
+            raise UsageError("kinetre scan is not available in this installation")
+        p.set_defaults(func=unavailable)
+        return
+    add_scan_parser(sub)
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="kinetre", description="Animate any 3D mesh with a body's motion (embedded deformation).",
+        epilog=EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)
+    sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
+
+    p = sub.add_parser("animate", help="drive a mesh with a motion file and write glTF, BVH, video or a take",
+                       epilog=EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("mesh", help="mesh file (.obj .ply .stl .off .glb .gltf, optionally .gz)")
+    p.add_argument("--motion", required=True, help="motion: .bvh, .kinetre.jsonl or a video")
+    p.add_argument("-o", "--output", required=True, help=f"output: {' '.join(ANIMATE_OUTPUTS)}")
+    p.add_argument("--nodes", type=int, default=128, help="graph nodes (default 128)")
+    p.add_argument("--seed", type=int, default=0, help="graph sampling seed (default 0)")
+    p.add_argument("--subset", action="append", metavar="JOINTS",
+                   help='joints that drive, e.g. "right arm" or "HipCenter,right arm" (repeatable)')
+    p.add_argument("--bind-frame", type=int, default=0, help="frame used as the bind pose (default 0)")
+    p.add_argument("--fit", action="store_true", help="resize the mesh to the skeleton instead of the motion to the mesh")
+    p.add_argument("--yaw", type=float, default=None, help="degrees about +Y the skeleton faces (default: the mesh front, +Z)")
+    p.add_argument("--scale", type=float, default=None, help="BVH: metres per file unit (default: guessed)")
+    p.add_argument("--fps", type=float, default=None, help="output frame rate (default: the take's, at most 30)")
+    p.add_argument("--frames", default=None, metavar="START:END", help="use only these frames of the take")
+    p.add_argument("--max-frames", type=int, default=None, help="stop after this many output frames")
+    p.add_argument("--no-skeleton", dest="skeleton", action="store_false", help="video: do not draw the skeleton")
+    p.add_argument("-q", "--quiet", action="store_true", help="no progress or summary")
+    p.set_defaults(func=cmd_animate)
+
+    p = sub.add_parser("capture", help="track a person in a video or webcam into a .kinetre.jsonl take",
+                       epilog=EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)
+    src = p.add_mutually_exclusive_group(required=True)
+    src.add_argument("--video", help="video file")
+    src.add_argument("--camera", type=int, help="camera index (0 = the first webcam)")
+    p.add_argument("-o", "--output", required=True, help="output .kinetre.jsonl")
+    p.add_argument("--seconds", type=float, default=None, help="camera: stop after this long (default: Ctrl+C)")
+    p.add_argument("--max-frames", type=int, default=None, help="stop after this many frames")
+    p.add_argument("--camera-fps", type=float, default=30.0, help="camera: nominal frame rate written (default 30)")
+    p.add_argument("--fov", type=float, default=60.0, help="camera horizontal field of view, degrees (default 60)")
+    p.add_argument("--no-smooth", action="store_true", help="no One-Euro filtering")
+    p.add_argument("-q", "--quiet", action="store_true")
+    p.set_defaults(func=cmd_capture)
+
+    p = sub.add_parser("record", help="convert any motion (BVH, take, video) to a .kinetre.jsonl take")
+    p.add_argument("source", help="motion: .bvh, .kinetre.jsonl or a video")
+    p.add_argument("-o", "--output", required=True, help="output .kinetre.jsonl")
+    p.add_argument("--scale", type=float, default=None, help="BVH: metres per file unit (default: guessed)")
+    p.add_argument("--fps", type=float, default=None, help="resample to this frame rate")
+    p.add_argument("--own-skeleton", action="store_true", help="BVH: keep the file's hierarchy, no Kinect-20 map")
+    p.set_defaults(func=cmd_record)
+
+    p = sub.add_parser("info", help="what a mesh, BVH, take or video holds")
+    p.add_argument("path")
+    p.set_defaults(func=cmd_info)
+
+    p = sub.add_parser("graph", help="build a mesh's deformation graph and write it as PLY for inspection")
+    p.add_argument("mesh")
+    p.add_argument("-o", "--output", required=True, help="output .ply (nodes = vertices, edges with a bridge flag)")
+    p.add_argument("--nodes", type=int, default=128)
+    p.add_argument("--seed", type=int, default=0)
+    p.set_defaults(func=cmd_graph)
+
+    p = sub.add_parser("studio", help="the live studio in a browser")
+    p.add_argument("mesh", nargs="?", default=None, help="mesh to open (default: the bundled Spot)")
+    p.add_argument("--port", type=int, default=8000)
+    p.add_argument("--host", default="127.0.0.1")
+    p.add_argument("--no-browser", action="store_true", help="do not open a browser")
+    p.set_defaults(func=cmd_studio)
+
+    _add_scan(sub)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    try:
+        return int(args.func(args) or 0)
+    except KinetreError as e:
+        print(f"kinetre: error: {' '.join(str(e).split())}", file=sys.stderr)
+        return 2
+    except (FileNotFoundError, PermissionError, IsADirectoryError) as e:
+        name = e.filename or ""
+        print(f"kinetre: error: {name}: {e.strerror or e}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print("kinetre: interrupted", file=sys.stderr)
+        return 130
+    except BrokenPipeError:  # `kinetre info x.bvh | head`: the reader left, which is not an error
+        sys.stdout = open(os.devnull, "w")
+        return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

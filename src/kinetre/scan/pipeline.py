@@ -1,0 +1,225 @@
+"""RGB-D frames in, a clean mesh ready to possess out: track → fuse → segment → marching cubes → clean → write.
+
+    >>> from kinetre.scan.pipeline import scan                     # doctest: +SKIP
+    >>> result = scan("frames/", "chair.ply", segment="plane")       # doctest: +SKIP
+    >>> print(result.summary())                                     # doctest: +SKIP
+    scan: 120 frames used, 3 rejected, 20412 vertices, 40110 faces, 95.2 s -> chair.ply
+"""
+from __future__ import annotations
+
+import io
+import sys
+import tempfile
+import time
+import zipfile
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import BadScanError
+from .frames import Intrinsics, RGBDSequence, open_sequence, read_frame
+from .fuse import TSDFVolume
+from .segment import changed_voxels, cut_to_voxels, dominant_plane, remove_plane
+from .surface import (CAMERA_TO_Y_UP, ScanMesh, decimate, orient_outward, remove_small_components,
+                      rotation_between, write_mesh)
+from .track import TrackingParams, track_frame
+
+SEGMENTS = (None, "plane", "change")
+
+
+@dataclass(frozen=True)
+class ScanResult:
+    """What a scan produced.
+
+    mesh_path : the written mesh; frames_used / frames_rejected : counts over all sequences
+    vertices, faces : size of the written mesh; seconds : wall time
+    poses : (N, 4, 4) float64 camera-to-world pose of every frame of the main sequence (world = first camera;
+            rejected frames hold the pose tracking proposed); accepted : (N,) bool
+    transform : (4, 4) float64 from world (first camera, y down) to the written mesh's frame (+Y up)
+    """
+
+    mesh_path: Path
+    frames_used: int
+    frames_rejected: int
+    vertices: int
+    faces: int
+    seconds: float
+    poses: np.ndarray = field(repr=False)
+    accepted: np.ndarray = field(repr=False)
+    transform: np.ndarray = field(repr=False)
+
+    def summary(self) -> str:
+        """One line for the terminal."""
+        return (f"scan: {self.frames_used} frames used, {self.frames_rejected} rejected, {self.vertices} vertices, "
+                f"{self.faces} faces, {self.seconds:.1f} s -> {self.mesh_path}")
+
+
+@dataclass
+class _Fused:
+    poses: list
+    accepted: list
+    first_view: np.ndarray | None  # (N, 3) world points of the first accepted frame
+
+
+def fuse_sequence(sequence: RGBDSequence, volume: TSDFVolume, params: TrackingParams, *,
+                  tracking_model: TSDFVolume | None = None, guesses: tuple[np.ndarray, ...] = (),
+                  progress: bool = True, label: str = "scan") -> _Fused:
+    """Track every frame against the model and fuse the accepted ones into `volume`.
+
+    The first frame is placed at `guesses[0]` (identity when none) if the model is empty; with
+    `tracking_model` (an earlier scan of the same place) the first frame is tracked against that model instead.
+    """
+    from tqdm import tqdm
+    camera = sequence.intrinsics
+    fused = _Fused([], [], None)
+    previous = None
+    bar = tqdm(range(len(sequence)), desc=label, unit="frame", disable=not progress, file=sys.stderr,
+               leave=False)
+    for index in bar:
+        color, depth = read_frame(sequence, index)
+        if previous is None and volume.frames == 0 and tracking_model is None:
+            pose, ok = (guesses[0] if guesses else np.eye(4)), True
+        else:
+            model = tracking_model if previous is None and volume.frames == 0 else volume
+            result = track_frame(model, color, depth, camera, previous, params,
+                                 guesses=guesses if previous is None else ())
+            pose, ok = result.pose, result.accepted
+            bar.set_postfix(fitness=f"{result.fitness:.2f}", lost=result.reason[:24] if not ok else "")
+        fused.poses.append(pose)
+        fused.accepted.append(ok)
+        if not ok:
+            continue  # a lost frame never touches the model
+        volume.integrate(color, depth, camera, pose)
+        previous = (color, depth, pose)
+        if fused.first_view is None:
+            fused.first_view = _world_points(depth, camera, pose)
+    bar.close()
+    return fused
+
+
+def _world_points(depth: np.ndarray, camera: Intrinsics, pose: np.ndarray, stride: int = 2) -> np.ndarray:
+    """(N, 3) world points of a depth image (every `stride`-th pixel)."""
+    v, u = np.mgrid[0:depth.shape[0]:stride, 0:depth.shape[1]:stride]
+    z = depth[::stride, ::stride]
+    ok = z > 0
+    z, u, v = z[ok], u[ok], v[ok]
+    points = np.stack([(u - camera.cx) * z / camera.fx, (v - camera.cy) * z / camera.fy, z], axis=1)
+    return points @ pose[:3, :3].T + pose[:3, 3]
+
+
+def scan(frames: str | Path, out_path: str | Path, *, segment: str | None = None, before: str | Path | None = None,
+         voxel: float = 0.006, intrinsics: str | Path | Intrinsics | None = None, camera: str | None = None,
+         depth_scale: float | None = None, depth_max: float = 3.0, target_faces: int | None = None,
+         min_component: float = 0.02, tracking: TrackingParams = TrackingParams(), progress: bool = True,
+         seed: int = 0) -> ScanResult:
+    """Reconstruct the RGB-D sequence in `frames` and write the mesh to `out_path` (.ply, .obj or .glb).
+
+    segment : None (whole scene), "plane" (remove the supporting plane, keep the object) or "change" (needs
+              `before`, a scan of the same place without the object, or with it when the main one has none)
+    voxel : TSDF voxel size in metres; depth_max : depth beyond this (metres) is ignored
+    target_faces : decimate to about this many faces; min_component : floaters smaller than this fraction of
+              the largest component are removed
+    The mesh is in metres, +Y up: the first camera's frame turned upright, or with `segment="plane"` the plane
+    is y = 0 and the object is centred above the origin.
+    """
+    start = time.perf_counter()
+    if segment not in SEGMENTS:
+        raise BadScanError(f"unknown segmentation {segment!r}; choose plane or change")
+    if segment == "change" and before is None:
+        raise BadScanError("--segment change needs --before DIR (a scan of the same place with the object "
+                           "moved)")
+    if not voxel or not np.isfinite(voxel) or voxel <= 0 or voxel > 0.2:
+        raise BadScanError(f"voxel size must be in (0, 0.2] metres, got {voxel}")
+    sequence = open_sequence(frames, intrinsics, depth_scale, camera)
+    volume = TSDFVolume(voxel, depth_max=depth_max)
+    used = rejected = 0
+    before_volume, before_poses = None, []
+    if before is not None:
+        before_sequence = open_sequence(before, intrinsics if intrinsics is not None else sequence.intrinsics,
+                                        depth_scale, camera)
+        before_volume = TSDFVolume(voxel, depth_max=depth_max)
+        pre = fuse_sequence(before_sequence, before_volume, tracking, progress=progress, label="before")
+        before_poses = [p for p, ok in zip(pre.poses, pre.accepted) if ok]
+        used, rejected = sum(pre.accepted), len(pre.accepted) - sum(pre.accepted)
+        # The second sweep starts where either the first one ended or began; its first frame is tracked
+        # against the first sweep's model, whose static background anchors both in one world.
+        main = fuse_sequence(sequence, volume, tracking, tracking_model=before_volume,
+                             guesses=(before_poses[-1], before_poses[0]), progress=progress)
+        if not main.accepted[0]:
+            raise BadScanError(f"{sequence.root}: its first frame could not be aligned with the --before scan "
+                               f"{before_sequence.root}; start both sweeps from the same view")
+    else:
+        main = fuse_sequence(sequence, volume, tracking, progress=progress)
+    used += sum(main.accepted)
+    rejected += len(main.accepted) - sum(main.accepted)
+
+    vertices, faces, colors = volume.triangle_mesh()
+    viewpoints = np.array([p[:3, 3] for p, ok in zip(main.poses, main.accepted) if ok] +
+                          [p[:3, 3] for p in before_poses])
+    mesh = ScanMesh(vertices, faces, colors)
+    transform = CAMERA_TO_Y_UP.copy()
+    if segment == "change":
+        change = changed_voxels(before_volume.voxels(), volume.voxels())
+        if not change.object_in_after:
+            vertices, faces, colors = before_volume.triangle_mesh()
+            mesh = ScanMesh(vertices, faces, colors)
+        mesh = cut_to_voxels(mesh, change.keys, voxel)
+    if len(mesh.faces) == 0:
+        raise BadScanError(f"{sequence.root}: no surface was reconstructed (check depth scale and depth_max "
+                           f"{depth_max} m)")
+    if segment == "plane":
+        plane = dominant_plane(main.first_view, main.poses[0][:3, 3], max(1.5 * voxel, 0.01), seed)
+        mesh = remove_plane(mesh, plane, margin=max(2.0 * voxel, 0.01))
+        transform = _upright_on_plane(mesh, plane)
+    mesh = remove_small_components(mesh, min_component)
+    if target_faces:
+        mesh = decimate(mesh, int(target_faces))
+    mesh = orient_outward(mesh, viewpoints)
+    mesh = mesh.transformed(transform)
+    path = write_mesh(mesh, out_path)
+    return ScanResult(path, int(used), int(rejected), len(mesh.vertices), len(mesh.faces),
+                      time.perf_counter() - start, np.array(main.poses), np.array(main.accepted, bool), transform)
+
+
+def _upright_on_plane(mesh: ScanMesh, plane) -> np.ndarray:
+    """(4, 4) rigid transform putting the plane at y = 0 with its normal +Y and the object above the origin."""
+    flip = CAMERA_TO_Y_UP[:3, :3]
+    rotation = rotation_between(flip @ plane.normal, np.array([0.0, 1.0, 0.0])) @ flip
+    transform = np.eye(4)
+    transform[:3, :3] = rotation
+    # a point on the plane goes to y = 0; the object's footprint centre goes to x = z = 0
+    moved = mesh.vertices @ rotation.T
+    on_plane = -plane.offset * plane.normal
+    transform[:3, 3] = [-moved[:, 0].mean(), -(rotation @ on_plane)[1], -moved[:, 2].mean()]
+    return transform
+
+
+def _frames_root(folder: Path) -> Path:
+    """The shallowest folder under `folder` that holds a TUM or Redwood sequence."""
+    candidates = [folder] + sorted((p for p in folder.rglob("*") if p.is_dir()), key=lambda p: len(p.parts))
+    for path in candidates:
+        if path.name == "__MACOSX":
+            continue
+        if (path / "depth.txt").is_file() or (path / "depth").is_dir():
+            return path
+    raise BadScanError("zip holds no RGB-D frames (expected rgb.txt + depth.txt, or color/ and depth/ folders)")
+
+
+def scan_zip(zip_bytes_or_path: bytes | str | Path, out_path: str | Path, **options) -> ScanResult:
+    """`scan` on frames uploaded as a zip (bytes or a path): the studio's "Scan" entry.
+
+    The zip may hold the sequence at its top level or in one folder; an intrinsics JSON beside the frames is
+    found as in `scan`. `options` are `scan`'s keywords (progress defaults to off).
+    """
+    options.setdefault("progress", False)
+    source = io.BytesIO(zip_bytes_or_path) if isinstance(zip_bytes_or_path, (bytes, bytearray)) \
+        else zip_bytes_or_path
+    name = "uploaded zip" if isinstance(source, io.BytesIO) else str(source)
+    with tempfile.TemporaryDirectory(prefix="kinetre-scan-") as tmp:
+        try:
+            with zipfile.ZipFile(source) as archive:
+                archive.extractall(tmp)  # zipfile strips absolute paths and '..' from member names
+        except (zipfile.BadZipFile, OSError) as exc:
+            raise BadScanError(f"{name}: not a readable zip file ({exc})") from None
+        return scan(_frames_root(Path(tmp)), out_path, **options)

@@ -1,0 +1,152 @@
+"""Camera tracking by frame-to-model ICP (KinectFusion; SPEC §5).
+
+For frame k with the previous accepted frame k-1 at pose T_{k-1} (camera-to-world):
+
+1. initial guess: RGB-D odometry (Open3D hybrid depth + photometric) from frame k to frame k-1 gives
+   T_{k-1,k}; the prediction is T_pred = T_{k-1} T_{k-1,k};
+2. the fused model is ray cast from T_pred and frame k is aligned to that rendering by multi-scale projective
+   point-to-plane ICP, giving T_k = T_pred T_pred,k;
+3. the alignment is scored against the model: `fitness` = fraction of the frame's valid pixels that land within
+   `inlier_distance` of the model's surface, `rmse` = RMS depth residual of those inliers (metres). A frame
+   below `min_fitness` or above `max_rmse`, or whose odometry failed, is lost and must not be fused.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .frames import Intrinsics
+from .fuse import TSDFVolume
+
+
+@dataclass(frozen=True)
+class TrackingParams:
+    """Thresholds of frame-to-model tracking (metres, fractions).
+
+    min_fitness : fraction of the frame's valid pixels that must agree with the model (lower = lost)
+    max_rmse : largest accepted RMS depth residual of the agreeing pixels
+    inlier_distance : depth residual below which a pixel agrees with the model
+    depth_outlier : correspondences farther apart are ignored by ICP
+    """
+
+    min_fitness: float = 0.3
+    max_rmse: float = 0.02
+    inlier_distance: float = 0.03
+    depth_outlier: float = 0.07
+    icp_iterations: tuple[int, ...] = (10, 5, 3)
+    odometry_iterations: tuple[int, ...] = (6, 4, 2)
+
+
+@dataclass(frozen=True)
+class TrackResult:
+    """Outcome of tracking one frame: pose (4, 4) float64 camera-to-world, scores, and why it was rejected."""
+
+    pose: np.ndarray
+    fitness: float
+    rmse: float
+    accepted: bool
+    reason: str = ""
+
+
+def _rgbd(o3d, color: np.ndarray, depth: np.ndarray):
+    c = o3d.core
+    if color.dtype == np.uint8:
+        color = color.astype(np.float32) / 255.0
+    return o3d.t.geometry.RGBDImage(o3d.t.geometry.Image(c.Tensor(np.ascontiguousarray(color, np.float32))),
+                                    o3d.t.geometry.Image(c.Tensor(np.ascontiguousarray(depth, np.float32))))
+
+
+def _odometry(o3d, source, target, camera: Intrinsics, depth_max: float, iterations, method, depth_outlier):
+    """Source-to-target (4, 4) transform by Open3D's multi-scale RGB-D odometry, or None if it fails."""
+    odo = o3d.t.pipelines.odometry
+    criteria = [odo.OdometryConvergenceCriteria(n) for n in iterations]
+    try:
+        result = odo.rgbd_odometry_multi_scale(
+            source, target, o3d.core.Tensor(camera.matrix), o3d.core.Tensor(np.eye(4)), 1.0, depth_max,
+            criteria, method, odo.OdometryLossParams(depth_outlier, depth_outlier * 0.7, 0.1))
+    except RuntimeError:  # too few correspondences at some pyramid level
+        return None
+    transform = result.transformation.numpy().astype(np.float64)
+    return transform if np.all(np.isfinite(transform)) else None
+
+
+def agreement(depth: np.ndarray, model_depth: np.ndarray, camera: Intrinsics, model_from_frame: np.ndarray,
+              inlier_distance: float, stride: int = 2) -> tuple[float, float]:
+    """Score a frame against a model rendering: (fitness in [0, 1], rmse in metres).
+
+    depth, model_depth : (H, W) float32 metres (0 = none); model_from_frame : (4, 4) maps frame camera
+    coordinates into the rendering's camera. Every `stride`-th pixel is reprojected into the rendering and its
+    depth compared with the model's there.
+    """
+    h, w = depth.shape
+    v, u = np.mgrid[0:h:stride, 0:w:stride]
+    z = depth[::stride, ::stride]
+    valid = z > 0
+    if not np.any(valid):
+        return 0.0, float("inf")
+    z, u, v = z[valid], u[valid], v[valid]
+    points = np.stack([(u - camera.cx) * z / camera.fx, (v - camera.cy) * z / camera.fy, z], axis=1)
+    points = points @ model_from_frame[:3, :3].T + model_from_frame[:3, 3]
+    zm = points[:, 2]
+    front = zm > 1e-6
+    pu = np.full(len(zm), -1, np.int64)
+    pv = np.full(len(zm), -1, np.int64)
+    pu[front] = np.round(points[front, 0] * camera.fx / zm[front] + camera.cx).astype(np.int64)
+    pv[front] = np.round(points[front, 1] * camera.fy / zm[front] + camera.cy).astype(np.int64)
+    inside = front & (pu >= 0) & (pu < w) & (pv >= 0) & (pv < h)
+    model = np.zeros(len(zm), np.float32)
+    model[inside] = model_depth[pv[inside], pu[inside]]
+    residual = np.abs(zm - model)
+    inlier = inside & (model > 0) & (residual < inlier_distance)
+    if not np.any(inlier):
+        return 0.0, float("inf")
+    return float(np.count_nonzero(inlier) / len(zm)), float(np.sqrt(np.mean(residual[inlier] ** 2)))
+
+
+def track_frame(volume: TSDFVolume, color: np.ndarray, depth: np.ndarray, camera: Intrinsics,
+                previous: tuple[np.ndarray, np.ndarray, np.ndarray] | None,
+                params: TrackingParams = TrackingParams(),
+                guesses: tuple[np.ndarray, ...] = ()) -> TrackResult:
+    """Pose of one frame (colour (H, W, 3) uint8, depth (H, W) float32 m) against the fused model.
+
+    previous : (colour, depth, pose) of the last accepted frame, for the odometry guess and as a fallback guess.
+    guesses : extra candidate poses (4, 4) to start from (e.g. the start of another sweep); the best-scoring
+    alignment wins.
+    """
+    from .fuse import open3d
+    o3d = open3d()
+    odo = o3d.t.pipelines.odometry
+    frame = _rgbd(o3d, color, depth)
+    starts = []
+    if previous is not None:
+        prev_color, prev_depth, prev_pose = previous
+        step = _odometry(o3d, frame, _rgbd(o3d, prev_color, prev_depth), camera, volume.depth_max,
+                         params.odometry_iterations, odo.Method.Hybrid, params.depth_outlier)
+        if step is not None:
+            starts.append(prev_pose @ step)
+        starts.append(prev_pose)
+    starts.extend(guesses)
+    if not starts:
+        starts.append(np.eye(4))
+    best = TrackResult(starts[0], 0.0, float("inf"), False, "no start pose aligned")
+    for start in starts:
+        model_color, model_depth = volume.raycast(camera, start)
+        if not np.any(model_depth > 0):
+            continue
+        refine = _odometry(o3d, frame, _rgbd(o3d, model_color, model_depth), camera, volume.depth_max,
+                           params.icp_iterations, odo.Method.PointToPlane, params.depth_outlier)
+        if refine is None:
+            continue
+        fitness, rmse = agreement(depth, model_depth, camera, refine, params.inlier_distance)
+        if fitness > best.fitness:
+            best = TrackResult(start @ refine, fitness, rmse, True)
+        if best.fitness >= max(params.min_fitness, 0.6):  # good enough: skip the other starts
+            break
+    if best.fitness < params.min_fitness:
+        return TrackResult(best.pose, best.fitness, best.rmse, False,
+                           f"lost tracking: fitness {best.fitness:.2f} < {params.min_fitness}")
+    if best.rmse > params.max_rmse:
+        return TrackResult(best.pose, best.fitness, best.rmse, False,
+                           f"lost tracking: rmse {best.rmse * 1000:.1f} mm > {params.max_rmse * 1000:.1f} mm")
+    return best

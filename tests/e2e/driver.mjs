@@ -1,0 +1,215 @@
+// Drives the studio page in Debian's Chromium with playwright-core (no browser download) and prints one
+// JSON object with what it measured. Run by tests/e2e/test_studio_page.py:
+//   node driver.mjs '{"scenario": "...", "url": "...", "video": "...", "audio": "...", "artifacts": "..."}'
+// The fake camera plays a person video (a y4m file), the fake microphone a WAV file, both on a loop.
+import { createRequire } from 'node:module';
+import { mkdirSync, writeFileSync } from 'node:fs';
+import { join, resolve } from 'node:path';
+
+const require = createRequire(new URL('../../web/package.json', import.meta.url));
+const { chromium } = require('playwright-core');
+
+const config = JSON.parse(process.argv[2]);
+const result = { scenario: config.scenario, steps: [] };
+const t0 = Date.now();
+const log = (step, extra = {}) => result.steps.push({ step, s: (Date.now() - t0) / 1000, ...extra });
+
+// Chromium refuses fake-capture paths that contain "..": hand it normalised absolute paths.
+function launch(audio) {
+  const args = [
+    '--headless', '--no-sandbox', '--disable-gpu', '--disable-quic', '--no-first-run',
+    '--disable-background-networking', '--disable-component-update', '--disable-sync',
+    '--disable-background-timer-throttling', '--disable-renderer-backgrounding',
+    '--disable-backgrounding-occluded-windows', '--autoplay-policy=no-user-gesture-required',
+    '--use-fake-ui-for-media-stream', '--use-fake-device-for-media-stream',
+    `--use-file-for-fake-video-capture=${resolve(config.video)}`,
+  ];
+  if (audio) args.push(`--use-file-for-fake-audio-capture=${resolve(audio)}`);
+  return chromium.launch({ executablePath: '/usr/bin/chromium', headless: true, args });
+}
+
+async function open(browser, name) {
+  const page = await browser.newPage({ viewport: { width: 800, height: 600 }, acceptDownloads: true });
+  page.on('pageerror', (e) => log(`${name}: page error`, { message: String(e) }));
+  page.on('console', (m) => { if (m.type() === 'error') log(`${name}: console error`, { message: m.text() }); });
+  await page.goto(config.url + (config.query ?? ''));
+  await page.waitForFunction(() => window.kinetre && window.kinetre.state().meshId !== null, null, { timeout: 60000 });
+  return page;
+}
+
+const state = (page) => page.evaluate(() => {
+  const s = window.kinetre.state();
+  delete s.skeleton;
+  return s;
+});
+
+async function until(page, predicate, arg, timeout = 60000) {
+  await page.waitForFunction(predicate, arg, { timeout, polling: 250 });
+}
+
+function spread(samples) {
+  // largest displacement of any sampled vertex between any two samples in time (metres)
+  let best = 0;
+  for (let a = 0; a < samples.length; a++) {
+    for (let b = a + 1; b < samples.length; b++) {
+      for (let v = 0; v < samples[a].length; v++) {
+        const d = Math.hypot(...samples[a][v].map((x, k) => x - samples[b][v][k]));
+        best = Math.max(best, d);
+      }
+    }
+  }
+  return best;
+}
+
+async function watchVertices(page, seconds, every = 400) {
+  const samples = [];
+  const end = Date.now() + seconds * 1000;
+  while (Date.now() < end) {
+    samples.push((await state(page)).vertices);
+    await page.waitForTimeout(every);
+  }
+  return samples;
+}
+
+async function startCamera(page, name) {
+  await page.keyboard.press('c');
+  await until(page, () => window.kinetre.state().trackedJoints >= 12, null, 120000);
+  log(`${name}: pose detected`, { tracked: (await state(page)).trackedJoints });
+}
+
+async function possess(page, name, subset = null) {
+  if (subset) await page.selectOption('#subset', subset);
+  await page.keyboard.press('f');
+  await page.waitForTimeout(300);
+  await page.keyboard.press('p');
+  await until(page, () => window.kinetre.state().possessing, null, 30000);
+  log(`${name}: possessing`, { users: (await state(page)).users });
+}
+
+async function screenshot(page, file) {
+  mkdirSync(config.artifacts, { recursive: true });
+  await page.screenshot({ path: join(config.artifacts, file) });
+}
+
+async function single() {
+  const browser = await launch(config.audio);
+  try {
+    const page = await open(browser, 'page');
+    const initial = await state(page);
+    result.initial = { meshId: initial.meshId, nodeCount: initial.nodeCount, vertices: initial.vertices.length };
+    await startCamera(page, 'page');
+    await page.waitForTimeout(1500);
+    const rigging = await state(page);
+    result.rigging = { attachable: rigging.attachableJoints, tracked: rigging.trackedJoints };
+    await possess(page, 'page');
+    await screenshot(page, 'studio-possessed.png');
+    const moving = await watchVertices(page, 6);
+    result.possessedSpread = spread(moving);
+    const during = await state(page);
+    result.perf = { fps: during.fps, renderMs: during.renderMs, updateMs: during.updateMs, detectMs: during.detectMs,
+      latencyMs: during.latencyMs };
+
+    // record a take while possessed and download it as GLB
+    await page.keyboard.press(' ');
+    await until(page, () => window.kinetre.state().recording, null, 10000);
+    await page.waitForTimeout(2500);
+    await page.keyboard.press(' ');
+    await page.waitForSelector('#downloads a.download', { timeout: 60000 });
+    const [download] = await Promise.all([
+      page.waitForEvent('download'),
+      page.click('#downloads a:has-text("GLB")'),
+    ]);
+    const glbPath = join(config.artifacts, 'take.glb');
+    await download.saveAs(glbPath);
+    result.glb = glbPath;
+    result.take = (await state(page)).take;
+    log('take downloaded');
+
+    await page.keyboard.press('r');
+    await until(page, () => !window.kinetre.state().possessing, null, 30000);
+    log('released');
+    await page.waitForTimeout(800);
+    result.releasedSpread = spread(await watchVertices(page, 3));
+
+    // voice: the fake microphone says "possess" on a loop
+    if (config.audio) {
+      await page.keyboard.press('v');
+      await until(page, () => {
+        const s = window.kinetre.state();
+        return s.possessing && s.voice && s.voice.command && s.voice.command.verb === 'possess';
+      }, null, 90000).catch(() => log('voice: no possess heard'));
+      const s = await state(page);
+      result.voice = { possessing: s.possessing, last: s.voice, utterances: s.voiceUtterances };
+      log('voice done');
+    }
+    await screenshot(page, 'studio-end.png');
+    result.final = await state(page);
+    delete result.final.vertices;
+  } finally {
+    await browser.close();
+  }
+}
+
+async function two() {
+  const browser = await launch(null);
+  try {
+    const a = await open(browser, 'A');
+    const b = await open(browser, 'B');
+    await startCamera(a, 'A');
+    await startCamera(b, 'B');
+    await possess(a, 'A', 'left arm');
+    await possess(b, 'B', 'right arm');
+    await screenshot(a, 'studio-two-users.png');
+    const s = await state(a);
+    result.users = s.users;
+    result.spreadA = spread(await watchVertices(a, 5));
+    result.seqB = (await state(b)).transformsSeq;
+    result.sameMesh = (await state(a)).meshId === (await state(b)).meshId;
+  } finally {
+    await browser.close();
+  }
+}
+
+async function upload() {
+  const browser = await launch(null);
+  try {
+    const page = await open(browser, 'page');
+    const before = (await state(page)).meshId;
+    await page.setInputFiles('#file', config.bad);
+    await until(page, () => document.querySelector('#message').className === 'error', null, 60000);
+    result.badMessage = await page.textContent('#message');
+    await page.setInputFiles('#file', config.good);
+    await until(page, (id) => window.kinetre.state().meshId !== id, before, 120000);
+    const s = await state(page);
+    result.after = { meshId: s.meshId, meshName: s.meshName, nodeCount: s.nodeCount, before };
+    await screenshot(page, 'studio-uploaded.png');
+  } finally {
+    await browser.close();
+  }
+}
+
+async function smoke() {
+  const browser = await launch(null);
+  try {
+    const page = await open(browser, 'page');
+    await page.waitForTimeout(config.wait ?? 3000);
+    result.state = await state(page);
+    delete result.state.vertices;
+    await screenshot(page, 'studio-smoke.png');
+  } finally {
+    await browser.close();
+  }
+}
+
+const scenarios = { single, two, upload, smoke };
+try {
+  await scenarios[config.scenario]();
+  result.ok = true;
+} catch (err) {
+  result.ok = false;
+  result.error = String(err && err.stack ? err.stack : err);
+}
+result.seconds = (Date.now() - t0) / 1000;
+const text = JSON.stringify(result);
+if (config.out) writeFileSync(config.out, text);
+process.stdout.write(text + '\n');

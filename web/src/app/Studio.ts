@@ -1,0 +1,286 @@
+// The page's wiring: one socket to the server, the 3D view, the mesh skinned by the server's node
+// transforms, the user's own capture (camera → MediaPipe → Kinect 20 → the user's skeleton channel),
+// other users' skeletons, the rigging view, voice, and takes.
+import { Camera } from '../capture/Camera';
+import { KinectMapper } from '../capture/KinectMapper';
+import { PoseTracker } from '../capture/PoseTracker';
+import { JOINT_COUNT } from '../capture/kinect20';
+import type { SceneState, ServerMessage, SkeletonMessage, TransformBlock, Vec3 } from '../net/protocol';
+import { StudioSocket } from '../net/StudioSocket';
+import { CanvasRecorder } from '../record/CanvasRecorder';
+import { TakeRecorder } from '../record/TakeRecorder';
+import { AttachPreview } from '../rigging/AttachPreview';
+import { MeshUploader } from '../rigging/MeshUploader';
+import { PlacementControls } from '../rigging/PlacementControls';
+import { fetchMesh } from '../scene/MeshPayload';
+import { SkeletonFigure } from '../scene/SkeletonFigure';
+import { SkinnedGraphMesh } from '../scene/SkinnedGraphMesh';
+import { Viewport } from '../scene/Viewport';
+import { Panel } from '../ui/Panel';
+import { VoiceListener, type VoiceResult } from '../voice/VoiceListener';
+
+const OTHER_COLOURS = [0x7fdbff, 0xb10dc9, 0x2ecc40, 0xffdc00];
+const MY_COLOUR = 0xffffff;
+const STALE_MS = 2000; // a remote skeleton not updated for this long disappears
+
+export class Studio {
+  readonly socket: StudioSocket;
+  readonly viewport: Viewport;
+  readonly panel: Panel;
+  readonly placement: PlacementControls;
+  readonly camera: Camera;
+  readonly tracker = new PoseTracker();
+  readonly mapper = new KinectMapper();
+  readonly voice: VoiceListener;
+  readonly takes = new TakeRecorder();
+  readonly video: CanvasRecorder;
+  readonly uploader: MeshUploader;
+  graphMesh: SkinnedGraphMesh | null = null;
+  preview: AttachPreview | null = null;
+  state: SceneState | null = null;
+  readonly me = new SkeletonFigure(MY_COLOUR);
+  readonly others = new Map<string, SkeletonFigure>();
+  connected = false;
+  seq = 0;
+  trackedJoints = 0;
+  trackingLost = false;
+  lastVoice: VoiceResult | null = null;
+  transformsSeen = 0;
+  latency: number[] = [];
+  private loadingMesh = 0;
+  private pending: TransformBlock | null = null;
+  private previewClock = 0;
+
+  constructor(root: HTMLElement) {
+    this.viewport = new Viewport(root, !new URLSearchParams(location.search).has('noshadows'));
+    this.viewport.scene.add(this.me.group);
+    this.me.group.visible = false;
+    this.panel = new Panel(root, {
+      camera: () => void this.toggleCamera(),
+      voice: () => void this.toggleVoice(),
+      sample: () => this.socket.send({ type: 'player', on: !this.sampleUser() }),
+      possess: () => this.socket.send({ type: 'possess', subset: this.panel.subset }),
+      release: () => this.socket.send({ type: 'release' }),
+      subset: (name) => this.socket.send({ type: 'subset', subset: name }),
+      fit: () => this.socket.send({ type: 'fit' }),
+      mode: (mode) => this.placement.setMode(mode),
+      record: () => void this.toggleRecord(),
+    });
+    this.camera = new Camera(root);
+    this.placement = new PlacementControls(this.viewport.camera, this.viewport.renderer.domElement,
+      this.viewport.controls, this.viewport.scene, (m) => this.socket.send(m));
+    this.voice = new VoiceListener(() => this.socket.client, (r) => this.onVoice(r));
+    this.video = new CanvasRecorder(this.viewport.renderer.domElement);
+    this.uploader = new MeshUploader({
+      onProgress: (label, f) => this.panel.setProgress(label, f),
+      onDone: () => { this.panel.setProgress(null); this.panel.setMessage('mesh ready: fit it to you and possess it'); },
+      onError: (m) => { this.panel.setProgress(null); this.panel.setMessage(m, true); },
+    });
+    this.uploader.bind(root, this.panel.fileInput);
+
+    const url = `${location.protocol === 'https:' ? 'wss' : 'ws'}://${location.host}${location.pathname.replace(/[^/]*$/, '')}ws`;
+    this.socket = new StudioSocket(url, {
+      onMessage: (m) => this.onMessage(m),
+      onTransforms: (b) => this.onTransforms(b),
+      onConnection: (open) => { this.connected = open; this.updateStatus(); },
+    });
+    this.viewport.onFrame(() => this.frame());
+  }
+
+  start(): void {
+    this.socket.connect();
+    this.viewport.start();
+  }
+
+  // --- server messages ------------------------------------------------------------------------------
+  private onMessage(m: ServerMessage): void {
+    switch (m.type) {
+      case 'state':
+        this.state = m;
+        this.placement.apply(m.placement);
+        if (!this.graphMesh || this.graphMesh.data.id !== m.mesh.id) void this.loadMesh(m.mesh.id, m.mesh.url);
+        this.panel.setActive('sample', this.sampleUser(), undefined);
+        this.panel.setActive('possess', this.possessing);
+        this.panel.setActive('record', m.recording);
+        this.updateStatus();
+        break;
+      case 'skeleton':
+        this.onRemoteSkeleton(m);
+        break;
+      case 'error':
+        this.panel.setMessage(m.message, true);
+        break;
+      default:
+        break;
+    }
+  }
+
+  private onTransforms(block: TransformBlock): void {
+    this.transformsSeen++;
+    if (!this.graphMesh || block.meshId !== this.graphMesh.data.id) {
+      this.pending = block; // the mesh is still loading: apply when it arrives
+      return;
+    }
+    this.graphMesh.setNodeMatrices(block.rows, block.seq);
+    if (block.tSource > 0) this.latency = [...this.latency.slice(-59), Date.now() - block.tSource];
+  }
+
+  private async loadMesh(id: number, url: string): Promise<void> {
+    if (this.loadingMesh === id) return;
+    this.loadingMesh = id;
+    const data = await fetchMesh(url.replace(/^\//, ''));
+    if (this.state && this.state.mesh.id !== id) return; // replaced while downloading
+    this.graphMesh?.mesh.removeFromParent();
+    this.graphMesh?.dispose();
+    this.preview?.dispose();
+    this.graphMesh = new SkinnedGraphMesh(data);
+    this.preview = new AttachPreview(data.nodes);
+    this.placement.holder.add(this.graphMesh.mesh, this.preview.points);
+    if (this.pending && this.pending.meshId === id) this.graphMesh.setNodeMatrices(this.pending.rows, this.pending.seq);
+    this.pending = null;
+    this.updateStatus();
+  }
+
+  private onRemoteSkeleton(m: SkeletonMessage): void {
+    if (!m.client || m.client === this.socket.client) return;
+    let figure = this.others.get(m.client);
+    if (!figure) {
+      figure = new SkeletonFigure(OTHER_COLOURS[this.others.size % OTHER_COLOURS.length]);
+      this.others.set(m.client, figure);
+      this.viewport.scene.add(figure.group);
+    }
+    figure.update(m.positions.map((p, j) => (m.tracked[j] ? p : null)));
+  }
+
+  // --- capture ------------------------------------------------------------------------------------
+  private async toggleCamera(): Promise<void> {
+    if (this.camera.running) {
+      this.camera.stop();
+      this.panel.setActive('camera', false);
+      return;
+    }
+    try {
+      this.panel.setMessage('starting the camera and the pose tracker…');
+      await this.camera.start();
+      await this.tracker.init();
+      this.panel.setActive('camera', true);
+      this.panel.setMessage('step back until your whole body is in view, then “Fit to me” and “Possess”');
+      void this.trackLoop();
+    } catch (err) {
+      this.camera.stop();
+      this.panel.setMessage(`camera: ${(err as Error).message}`, true);
+    }
+  }
+
+  private async trackLoop(): Promise<void> {
+    while (this.camera.running) {
+      const result = await this.tracker.detect(this.camera.video).catch(() => null);
+      if (!this.camera.running) break;
+      if (result) {
+        const frame = this.mapper.map(result.world, result.image);
+        this.trackedJoints = frame.tracked.filter(Boolean).length;
+        this.trackingLost = false;
+        this.me.group.visible = true;
+        this.me.update(frame.positions, this.preview?.attachableJoints ?? []);
+        this.sendFrame(frame.positions, frame.tracked);
+      } else {
+        // nobody in view: an all-untracked frame makes the server hold the last pose
+        this.trackingLost = true;
+        this.trackedJoints = 0;
+        this.sendFrame(new Array(JOINT_COUNT).fill(null), new Array(JOINT_COUNT).fill(false));
+      }
+      await new Promise((resolve) => setTimeout(resolve, 0));
+    }
+  }
+
+  private sendFrame(positions: (Vec3 | null)[], tracked: boolean[]): void {
+    this.socket.sendFrame({ type: 'skeleton', seq: ++this.seq, t: Date.now(), model: 'kinect20', positions, tracked });
+  }
+
+  // --- voice and takes ----------------------------------------------------------------------------
+  private async toggleVoice(): Promise<void> {
+    if (this.voice.listening) {
+      this.voice.stop();
+      this.panel.setActive('voice', false);
+      return;
+    }
+    try {
+      await this.voice.start();
+      this.panel.setActive('voice', true);
+      this.panel.setMessage('listening: say “possess”, “release”, or a body part like “left arm”');
+    } catch (err) {
+      this.panel.setMessage(`microphone: ${(err as Error).message}`, true);
+    }
+  }
+
+  private onVoice(r: VoiceResult): void {
+    this.lastVoice = r;
+    if (r.error) this.panel.setMessage(`voice: ${r.error}`, true);
+    else if (r.command) {
+      if (r.command.subset) this.panel.subset = r.command.subset;
+      this.panel.setMessage(`heard “${r.command.text}”`);
+    }
+  }
+
+  private async toggleRecord(): Promise<void> {
+    try {
+      if (!this.takes.recording) {
+        await this.takes.start();
+        this.video.start();
+        this.panel.setDownloads([]);
+        this.panel.setMessage('recording… press Space or Record again to stop');
+        return;
+      }
+      const [take, webm] = await Promise.all([this.takes.stop(), this.video.stop()]);
+      const links = Object.entries(take.files).map(([kind, href]) => ({
+        label: kind === 'stream' ? 'skeleton stream' : kind.toUpperCase(), href,
+        file: href.split('/').pop() as string,
+      }));
+      if (webm) links.push({ label: 'WebM', href: URL.createObjectURL(webm), file: `kinetre-${take.take}.webm` });
+      this.panel.setDownloads(links);
+      this.panel.setMessage(`take ${take.take}: ${take.frames} frames at ${take.fps} fps`);
+    } catch (err) {
+      await this.video.stop();
+      this.panel.setMessage((err as Error).message, true);
+    }
+  }
+
+  // --- per rendered frame -------------------------------------------------------------------------
+  private frame(): void {
+    const now = performance.now();
+    for (const [client, figure] of this.others) {
+      if (now - figure.updatedAt > STALE_MS) { figure.dispose(); this.others.delete(client); }
+    }
+    const figures = [this.me, ...this.others.values()].filter((f) => f.group.visible);
+    this.graphMesh?.setSkeletonSegments(figures.flatMap((f) => f.segments()));
+    if (this.preview && now - this.previewClock > 100) {
+      this.previewClock = now;
+      this.placement.holder.updateMatrixWorld(true);
+      const result = this.preview.update(figures.map((f) => f.positions), this.placement.holder.matrixWorld);
+      figures.forEach((f, i) => f.update(f.positions, result[i]));
+      this.me.updatedAt = now;
+    }
+    if (this.viewport.frames % 15 === 0) this.updateStatus();
+  }
+
+  get possessing(): boolean {
+    return Boolean(this.state?.users.find((u) => u.client === this.socket.client)?.possessing);
+  }
+
+  sampleUser(): boolean {
+    return Boolean(this.state?.users.find((u) => u.client === 'sample')?.possessing);
+  }
+
+  private updateStatus(): void {
+    const parts = [this.connected ? `connected as ${this.socket.client}` : 'offline: reconnecting…'];
+    if (this.state) {
+      parts.push(`${this.state.mesh.name} (${this.state.mesh.nodes} nodes)`);
+      const drivers = this.state.users.filter((u) => u.possessing).map((u) => (u.client === this.socket.client ? 'you' : u.client));
+      parts.push(drivers.length ? `driven by ${drivers.join(' + ')}` : 'nobody possesses the mesh');
+      if (this.state.solve_ms !== null) parts.push(`solve ${this.state.solve_ms.toFixed(1)} ms`);
+    }
+    if (this.camera.running) parts.push(this.trackingLost ? 'tracking lost: holding the pose' : `tracking ${this.trackedJoints}/20`);
+    parts.push(`${this.viewport.fps.toFixed(0)} fps`);
+    this.panel.setStatus(parts.join(' · '));
+  }
+}

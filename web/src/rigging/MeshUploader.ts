@@ -1,0 +1,79 @@
+// Load a mesh by drag and drop or the file picker: upload (progress from the browser), then poll the
+// server's preprocessing job (progress from the server) until the new mesh is ready or fails readably.
+
+export const MESH_EXTENSIONS = ['.obj', '.ply', '.stl', '.glb', '.gltf', '.off'];
+
+export interface UploadEvents {
+  onProgress(label: string, fraction: number): void;
+  onDone(meshId: number): void;
+  onError(message: string): void;
+}
+
+export class MeshUploader {
+  busy = false;
+
+  constructor(private readonly events: UploadEvents) {}
+
+  /** Make `target` accept dropped files and `input` pick them. */
+  bind(target: HTMLElement, input: HTMLInputElement): void {
+    target.addEventListener('dragover', (e) => { e.preventDefault(); target.classList.add('drop'); });
+    target.addEventListener('dragleave', () => target.classList.remove('drop'));
+    target.addEventListener('drop', (e) => {
+      e.preventDefault();
+      target.classList.remove('drop');
+      const file = e.dataTransfer?.files[0];
+      if (file) void this.upload(file);
+    });
+    input.accept = MESH_EXTENSIONS.join(',');
+    input.addEventListener('change', () => {
+      const file = input.files?.[0];
+      if (file) void this.upload(file);
+      input.value = '';
+    });
+  }
+
+  async upload(file: File): Promise<void> {
+    if (this.busy) return this.events.onError('a mesh is already being prepared');
+    const ext = file.name.slice(file.name.lastIndexOf('.')).toLowerCase();
+    if (!MESH_EXTENSIONS.includes(ext) && !file.name.toLowerCase().endsWith('.gz')) {
+      return this.events.onError(`${file.name}: not a mesh file (expected ${MESH_EXTENSIONS.join(', ')})`);
+    }
+    this.busy = true;
+    try {
+      const job = await this.send(file);
+      await this.follow(job);
+    } catch (err) {
+      this.events.onError((err as Error).message);
+    } finally {
+      this.busy = false;
+    }
+  }
+
+  private send(file: File): Promise<number> {
+    return new Promise((resolve, reject) => {
+      const xhr = new XMLHttpRequest();
+      xhr.open('POST', `api/mesh?name=${encodeURIComponent(file.name)}`);
+      xhr.upload.onprogress = (e) => {
+        if (e.lengthComputable) this.events.onProgress(`uploading ${file.name}`, 0.3 * (e.loaded / e.total));
+      };
+      xhr.onload = () => {
+        const body = JSON.parse(xhr.responseText || '{}') as { job?: number; error?: string };
+        if (xhr.status === 202 && body.job !== undefined) resolve(body.job);
+        else reject(new Error(body.error ?? `${file.name}: upload failed (HTTP ${xhr.status})`));
+      };
+      xhr.onerror = () => reject(new Error(`${file.name}: upload failed (network)`));
+      xhr.send(file);
+    });
+  }
+
+  private async follow(job: number): Promise<void> {
+    for (;;) {
+      const r = await fetch(`api/jobs/${job}`);
+      const s = (await r.json()) as { stage: string; fraction: number; error: string; done: boolean; mesh: number | null };
+      if (s.error) throw new Error(s.error);
+      this.events.onProgress(s.stage, 0.3 + 0.7 * s.fraction);
+      if (s.done && s.mesh !== null) return this.events.onDone(s.mesh);
+      await new Promise((res) => setTimeout(res, 200));
+    }
+  }
+}
