@@ -4,7 +4,6 @@ Prints one JSON object per line. Run on one core: OMP_NUM_THREADS=1 NUMBA_NUM_TH
 """
 from __future__ import annotations
 
-import dataclasses
 import json
 import sys
 import time
@@ -19,7 +18,10 @@ from kinetre.mesh.load import mesh_from_trimesh
 from kinetre.motion.bvh import load_bvh
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
 from reference_solver import reference_iteration  # noqa: E402
+from synthetic import capsule_body  # noqa: E402
+from kinetre.deform.solver import SolverSettings  # noqa: E402
 
 DATA = Path(__file__).resolve().parents[1] / ".." / "shared" / "data"
 
@@ -48,56 +50,47 @@ def bench_build_graph():
                   "seconds": round(time.perf_counter() - t, 3)})
 
 
-def fitted_take(mesh: kinetre.Mesh, take, offset=(0.0, 0.0, 0.0)):
-    """The take scaled so its first frame is as tall as the mesh, centred on it, feet on its floor."""
-    first = take.frame(0)
-    s = np.ptp(mesh.vertices[:, 1]) / first.height
-    lo, hi = mesh.bounds
-    centre = 0.5 * (lo + hi)
-    shift = np.array([centre[0], lo[1], centre[2]]) - s * np.array(
-        [first.positions[first.tracked, 0].mean(), first.positions[first.tracked, 1].min(),
-         first.positions[first.tracked, 2].mean()]) + np.asarray(offset)
-    return [take.frame(i).transformed(scale=s, translation=shift) for i in range(len(take))]
-
-
 def bench_solve():
-    arm = kinetre.load_mesh(DATA / "meshes" / "armadillo.obj")
-    v = arm.vertices - arm.vertices.min(axis=0)
-    arm = dataclasses.replace(arm, vertices=v * (1.7 / np.ptp(v[:, 1])))
+    # a body built around the clip's first frame, so the skeleton is inside it as after "possess"
     take = load_bvh(DATA / "bvh" / "cmu_12_01_walk.bvh")
-    frames_a = fitted_take(arm, take)[::4]  # 30 fps
-    frames_b = fitted_take(arm, take, offset=(0.05, 0.0, 0.03))[::4]
-    frames_b = frames_b[10:] + frames_b[:10]
+    frames = [take.frame(i) for i in range(0, len(take), 4)]  # 30 fps
+    body = capsule_body(frames[0], radius=0.06)
+    second = [f.transformed(translation=(0.03, 0.0, 0.02)) for f in frames[10:] + frames[:10]]
     for nodes in (128, 256, 512):
-        graph = kinetre.build_graph(arm, nodes=nodes)
+        graph = kinetre.build_graph(body, nodes=nodes)
         for skeletons in (1, 2):
-            binds = [frames_a[0], frames_b[0]][:skeletons]
-            rig = kinetre.attach(graph, binds)
-            times, iters = [], []
-            for i in range(1, len(frames_a)):
-                cur = [frames_a[i], frames_b[i]][:skeletons]
-                t = time.perf_counter()
-                rig.solve(cur)
-                times.append(time.perf_counter() - t)
-                iters.append(rig.last_report.iterations)
-            times = np.array(times[5:]) * 1e3  # after warm-up
-            it = np.array(iters[5:])
-            # the reference, on the same frames, from the same warm start, one iteration each
-            ref = []
-            x = rig._x.copy()
-            q, ok = rig.targets([frames_a[5], frames_b[5]][:skeletons])
-            for _ in range(3):
-                x, dt = reference_iteration(graph, rig.constraints, q, ok.astype(float), x, EnergyWeights())
-                ref.append(dt * 1e3)
-            ms_iter = times.sum() / max(it.sum(), 1)
-            emit({"bench": "solve", "nodes": graph.node_count, "skeletons": skeletons,
-                  "constraints": rig.constraint_count, "frames": len(times),
-                  "ms_per_frame_median": round(float(np.median(times)), 3),
-                  "ms_per_frame_p95": round(float(np.percentile(times, 95)), 3),
-                  "iterations_mean": round(float(it.mean()), 2), "ms_per_iter": round(float(ms_iter), 3),
-                  "reference_ms_per_iter": round(float(np.median(ref)), 3),
-                  "speedup_per_iter": round(float(np.median(ref) / ms_iter), 1),
-                  "backend": rig.solver.factor.backend})
+            for reuse in (False, True):
+                binds = [frames[0], second[0]][:skeletons]
+                rig = kinetre.attach(graph, binds, settings=SolverSettings(reuse_factor=reuse))
+                times, iters, facts = [], [], []
+                for i in range(1, len(frames)):
+                    cur = [frames[i], second[i]][:skeletons]
+                    t = time.perf_counter()
+                    rig.solve(cur)
+                    times.append(time.perf_counter() - t)
+                    iters.append(rig.last_report.iterations)
+                    facts.append(rig.last_report.factorisations)
+                times = np.array(times[5:]) * 1e3  # after warm-up
+                it = np.array(iters[5:])
+                # the reference, one plain iteration from the same state on the same frame
+                ref = []
+                x = rig._x.copy()
+                q, ok = rig.targets([frames[5], second[5]][:skeletons])
+                for _ in range(3):
+                    x, dt = reference_iteration(graph, rig.constraints, q, ok.astype(float), x, EnergyWeights())
+                    ref.append(dt * 1e3)
+                ms_iter = times.sum() / max(it.sum(), 1)
+                emit({"bench": "solve", "nodes": graph.node_count, "skeletons": skeletons,
+                      "mode": "reuse_factor" if reuse else "exact_gn",
+                      "constraints": rig.constraint_count, "frames": len(times),
+                      "ms_per_frame_median": round(float(np.median(times)), 3),
+                      "ms_per_frame_p95": round(float(np.percentile(times, 95)), 3),
+                      "iterations_mean": round(float(it.mean()), 2),
+                      "factorisations_mean": round(float(np.mean(facts[5:])), 2),
+                      "ms_per_iter": round(float(ms_iter), 3),
+                      "reference_ms_per_iter": round(float(np.median(ref)), 3),
+                      "speedup_per_iter": round(float(np.median(ref) / ms_iter), 1),
+                      "backend": rig.solver.factor.backend})
 
 
 def bench_skin():

@@ -38,9 +38,14 @@ def tpose(height: float = 1.7, centre=(0.0, 0.0, 0.0)) -> Skeleton:
 
 def body_mesh(height: float = 1.7) -> kinetre.Mesh:
     """A crude humanoid made of capsules along the T-pose bones: a mesh every joint lies inside."""
-    sk = tpose(height)
+    return capsule_body(tpose(height), radius=0.05 * height / 1.7)
+
+
+def capsule_body(sk: Skeleton, radius: float = 0.05) -> kinetre.Mesh:
+    """Capsules of `radius` around every bone of a skeleton frame."""
+    height = 1.7 * radius / 0.05
     parts = []
-    for a, b in KINECT20.bones:
+    for a, b in sk.model.bones:
         pa, pb = sk.positions[a], sk.positions[b]
         length = np.linalg.norm(pb - pa)
         if length < 1e-6:

@@ -60,7 +60,8 @@ def _subset(items: list[str] | None):
 
 def _bar(total: int, desc: str, quiet: bool):
     from tqdm import tqdm
-    return tqdm(total=total, desc=desc, unit="frame", disable=quiet, file=sys.stderr, leave=False)
+    # disable=None: bars only on a terminal, so piped or captured stderr holds just the error line
+    return tqdm(total=total, desc=desc, unit="frame", disable=True if quiet else None, file=sys.stderr, leave=False)
 
 
 def _load_motion(path: str, scale: float | None, as_kinect: bool = True):
@@ -74,7 +75,8 @@ def _load_motion(path: str, scale: float | None, as_kinect: bool = True):
 
 # ---- animate ---------------------------------------------------------------------------------------
 
-def cmd_animate(args) -> int:
+def cmd_animate(args, stats: dict | None = None) -> int:
+    """`kinetre animate`; `stats` (if given) receives the sizes and seconds per stage (for benchmarks)."""
     import numpy as np
 
     import kinetre
@@ -82,12 +84,20 @@ def cmd_animate(args) -> int:
     from .motion.source import resample
 
     out_ext = _ext(args.output, ANIMATE_OUTPUTS)
+    frames = _frames(args.frames)
     if args.nodes < 2:
         raise UsageError(f"--nodes must be at least 2, got {args.nodes}")
-    t0 = time.perf_counter()
+    stats = {} if stats is None else stats
+    t0 = clock = time.perf_counter()
+
+    def lap(stage):
+        nonlocal clock
+        now = time.perf_counter()
+        stats[f"{stage}_s"] = now - clock
+        clock = now
+
     mesh = kinetre.load_mesh(args.mesh)
     take = _load_motion(args.motion, args.scale)
-    frames = _frames(args.frames)
     take = take.slice(frames.start or 0, frames.stop)
     fps = args.fps if args.fps is not None else min(take.fps, 30.0)
     take = resample(take, fps)
@@ -95,12 +105,14 @@ def cmd_animate(args) -> int:
         take = take.slice(0, max(1, args.max_frames))
     if not -len(take) <= args.bind_frame < len(take):
         raise UsageError(f"--bind-frame {args.bind_frame} is outside the take's {len(take)} frames")
+    lap("load")
     say = (lambda *a: None) if args.quiet else print
     say(f"mesh {args.mesh}: {len(mesh.vertices)} vertices, {len(mesh.faces)} faces")
     say(f"motion {args.motion}: {take.model.name}, {len(take.model.joints)} joints, {len(take)} frames "
         f"at {take.fps:g} fps")
 
     graph = kinetre.build_graph(mesh, nodes=args.nodes, seed=args.seed)
+    lap("graph")
     placement = fit_take(take, mesh, args.bind_frame, fit_mesh=args.fit, yaw=args.yaw)
     placed = placement.take(take)
     solve_graph = placement.graph(graph)
@@ -111,6 +123,7 @@ def cmd_animate(args) -> int:
     say(f"attached {len(joints)} joint(s) ({', '.join(joints) or 'none'}), {int((att.bone >= 0).sum())} bone "
         f"samples, {len(rig.nodes_used)} of {graph.node_count} nodes (mesh scaled by {placement.mesh_scale:.4g} "
         f"to the {bind.height:.2f} m skeleton)")
+    lap("attach")
 
     out_take = placed.transformed(placement.output_scale)
     if out_ext in (".bvh", ".kinetre.jsonl"):
@@ -121,6 +134,7 @@ def cmd_animate(args) -> int:
             for i in range(len(placed)):
                 poses.append(placement.output_pose(rig.solve(placed.frame(i))))
                 bar.update(1)
+        lap("solve")
         mesh_out = placement.mesh(mesh) if args.fit else mesh
         graph_out = solve_graph if args.fit else graph
         if out_ext in (".glb", ".gltf"):
@@ -134,7 +148,11 @@ def cmd_animate(args) -> int:
                             on_frame=lambda i: bar.update(1))
         energy = np.array([p.energy for p in poses], dtype=float)
         say(f"solved {len(poses)} frames, median energy {np.nanmedian(energy) if np.isfinite(energy).any() else float('nan'):.3g}")
-    say(f"wrote {args.output} ({len(take)} frames at {take.fps:g} fps, {time.perf_counter() - t0:.1f} s)")
+    lap("write")
+    stats.update(vertices=len(mesh.vertices), nodes=graph.node_count, frames=len(take),
+                 total_s=time.perf_counter() - t0)
+    stages = ", ".join(f"{k[:-2]} {v:.1f}" for k, v in stats.items() if k.endswith("_s") and k != "total_s")
+    say(f"wrote {args.output} ({len(take)} frames at {take.fps:g} fps; {stats['total_s']:.1f} s: {stages})")
     return 0
 
 
@@ -170,16 +188,26 @@ def cmd_capture(args) -> int:
         tracked = take.tracked.any(axis=1).sum()
         print(f"wrote {args.output}: {len(take)} frames at {take.fps:g} fps, a person in {tracked}")
         return 0
+    files = []  # the take file is created at the first frame, so a camera that fails leaves nothing behind
+
+    def on_frame(skeleton, t):
+        if not files:
+            try:
+                f = open(args.output, "w", encoding="utf-8")
+            except OSError as e:
+                raise UsageError(f"{args.output}: cannot write ({e.strerror})") from None
+            files.append((f, TakeWriter(f, KINECT20, args.camera_fps, f"camera {args.camera}")))
+            if not args.quiet:
+                print(f"recording camera {args.camera} to {args.output} (Ctrl+C to stop)", file=sys.stderr)
+        files[0][1].write(skeleton, t)
+
     try:
-        f = open(args.output, "w", encoding="utf-8")
-    except OSError as e:
-        raise UsageError(f"{args.output}: cannot write ({e.strerror})") from None
-    with f:
-        writer = TakeWriter(f, KINECT20, args.camera_fps, f"camera {args.camera}")
-        if not args.quiet:
-            print(f"recording camera {args.camera} to {args.output} (Ctrl+C to stop)", file=sys.stderr)
-        count = capture_camera(args.camera, writer.write, settings, seconds=args.seconds,
-                               max_frames=args.max_frames)
+        count = capture_camera(args.camera, on_frame, settings, seconds=args.seconds, max_frames=args.max_frames)
+    finally:
+        for f, _ in files:
+            f.close()
+    if not count:
+        raise UsageError(f"camera {args.camera}: no frames arrived")
     print(f"wrote {args.output}: {count} frames")
     return 0
 

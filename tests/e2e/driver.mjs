@@ -29,7 +29,7 @@ function launch(audio) {
 }
 
 async function open(browser, name) {
-  const page = await browser.newPage({ viewport: { width: 800, height: 600 }, acceptDownloads: true });
+  const page = await browser.newPage({ viewport: { width: 720, height: 540 }, acceptDownloads: true });
   page.on('pageerror', (e) => log(`${name}: page error`, { message: String(e) }));
   page.on('console', (m) => { if (m.type() === 'error') log(`${name}: console error`, { message: m.text() }); });
   await page.goto(config.url + (config.query ?? ''));

@@ -90,9 +90,12 @@ def render(scene: Scene, poses: np.ndarray, k: np.ndarray, width: int, height: i
     for v, f in zip(scene.other_vertices, scene.other_faces):
         rs.add_triangles(o3d.core.Tensor(v.astype(np.float32)), o3d.core.Tensor(f.astype(np.uint32)))
     rng = np.random.default_rng(seed)
+    # RaycastingScene shoots through pixel corners + 0.5; shift the centre so pixel u sees (u - cx) / fx.
+    k_rays = k.copy()
+    k_rays[:2, 2] += 0.5
     colors, depths, masks = [], [], []
     for pose in poses:
-        rays = rs.create_rays_pinhole(o3d.core.Tensor(k), o3d.core.Tensor(np.linalg.inv(pose)), width, height)
+        rays = rs.create_rays_pinhole(o3d.core.Tensor(k_rays), o3d.core.Tensor(np.linalg.inv(pose)), width, height)
         hit = rs.cast_rays(rays)
         t = hit["t_hit"].numpy()
         r = rays.numpy()

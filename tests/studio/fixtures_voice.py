@@ -24,8 +24,8 @@ def command_texts(subsets: tuple[str, ...]) -> list[tuple[str, str | None, str |
 
 
 # The grammar's other words for the two verbs.
-SYNONYMS = (("attach", "possess", None), ("let go", "release", None), ("attach the right arm", "possess", "right arm"),
-            ("let go the legs", "release", "legs"))
+SYNONYMS = (("attach", "possess", None), ("let go", "release", None),
+            ("attach the right arm", "possess", "right arm"), ("let go the legs", "release", "legs"))
 
 
 def synthesise(texts: list[str], voice: str, directory: Path) -> list[bytes]:

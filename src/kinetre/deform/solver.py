@@ -22,7 +22,7 @@ from .normal_equations import NormalEquations
 @dataclass(frozen=True)
 class SolverSettings:
     max_iterations: int = 10
-    relative_tolerance: float = 1e-6   # stop when an accepted step lowers E by less than this fraction
+    relative_tolerance: float = 1e-3   # stop when an accepted step lowers E by less than this fraction
     initial_damping: float = 1e-6
     max_damping: float = 1e8
     reuse_factor: bool = False
@@ -54,6 +54,7 @@ class GaussNewton:
         self._linear_data = None
         self._factored = False
         self._diag = None
+        self._lam = None
 
     def _linear(self, active: np.ndarray) -> np.ndarray:
         key = active.tobytes()
@@ -71,7 +72,9 @@ class GaussNewton:
         parts = sysm.residuals(x, targets, active)
         energy = sysm.energy(parts)
         energies = [energy]
-        lam = s.initial_damping
+        # damping carries over from the previous frame: its scale is a property of the rig
+        lam = self._lam if self._lam is not None else s.initial_damping
+        nu = 2.0
         iterations = factorisations = accepted = 0
         reusable = s.reuse_factor and self._factored
         while iterations < s.max_iterations and energy > self.energy_floor:
@@ -116,21 +119,27 @@ class GaussNewton:
                 e_new = sysm.energy(parts_new)
                 if np.isfinite(e_new) and e_new < energy:
                     decrease = energy - e_new
+                    if not reused:
+                        # Nielsen's update from the gain ratio: a step the model predicted well
+                        # lowers the damping, a poor one keeps it
+                        rho = decrease / max(predicted, 1e-300)
+                        lam = max(lam * max(1.0 / 3.0, 1.0 - (2.0 * rho - 1.0) ** 3), 1e-12)
+                        nu = 2.0
                     x, parts, energy = x_new, parts_new, e_new
                     energies.append(energy)
                     accepted += 1
-                    if not reused:
-                        lam = max(lam / 10.0, 1e-12)
                     reusable = s.reuse_factor
                     stepped = True
                     break
                 if reused:
                     reusable = False  # refresh the factor before raising the damping
                     continue
-                lam *= 10.0
+                lam *= nu
+                nu *= 2.0
                 if lam > s.max_damping:
                     break
             if not stepped or decrease <= s.relative_tolerance * energies[-2]:
                 break
+        self._lam = min(max(lam, s.initial_damping), 1e3)
         return SolveReport(x=x, energy=energy, iterations=iterations, accepted=accepted,
                            energies=tuple(energies), factorisations=factorisations)

@@ -134,25 +134,28 @@ def solve_rotations(frames: list[Skeleton]) -> tuple[np.ndarray, np.ndarray, np.
     offsets = _rest_offsets(pos, tracked, parents)
     children = [[c for c in range(j) if parents[c] == i] for i in range(j)]
     root = int(np.flatnonzero(parents < 0)[0])
-    order = _depth_first(root, children)
 
     out_pos = np.zeros((f, j, 3))
     out_rot = np.tile(np.eye(3), (f, j, 1, 1))
-    first_root = pos[np.argmax(tracked[:, root]), root] if tracked[:, root].any() else np.zeros(3)
-    last_root = first_root
-    for k in range(f):
-        for i in order:
-            p = parents[i]
-            if p < 0:
-                out_pos[k, i] = pos[k, i] if tracked[k, i] else last_root
-                last_root = out_pos[k, i]
-                parent_rot = np.eye(3)
-            else:
-                parent_rot = out_rot[k, p]
-                out_pos[k, i] = pos[k, i] if tracked[k, i] else out_pos[k, p] + parent_rot @ offsets[i]
-            rest = [offsets[c] for c in children[i] if tracked[k, c]]
-            now = [pos[k, c] - out_pos[k, i] for c in children[i] if tracked[k, c]]
-            out_rot[k, i] = _fit_rotation(parent_rot, rest, now)
+    for i in _depth_first(root, children):      # parents before children, every frame at once
+        p = parents[i]
+        if p < 0:
+            # a lost root holds its last tracked position (the first tracked one before that)
+            seen = np.where(tracked[:, i], np.arange(f), -1)
+            last = np.maximum.accumulate(seen)
+            last[last < 0] = np.argmax(tracked[:, i]) if tracked[:, i].any() else 0
+            out_pos[:, i] = pos[last, i] if tracked[:, i].any() else 0.0
+            parent_rot = np.tile(np.eye(3), (f, 1, 1))
+        else:
+            parent_rot = out_rot[:, p]
+            carried = out_pos[:, p] + parent_rot @ offsets[i]
+            out_pos[:, i] = np.where(tracked[:, i, None], pos[:, i], carried)
+        kids = children[i]
+        if kids:
+            now = np.where(tracked[:, kids, None], pos[:, kids] - out_pos[:, i, None], 0.0)   # (F, C, 3)
+            out_rot[:, i] = _fit_rotations(parent_rot, offsets[kids], now)
+        else:
+            out_rot[:, i] = parent_rot
     return out_pos, out_rot, offsets
 
 
@@ -210,34 +213,55 @@ def _rest_offsets(pos, tracked, parents):
     return offsets
 
 
-def _fit_rotation(parent_rot, rest, now):
-    """World rotation taking the rest child bones `rest` onto the current ones `now` (lists of (3,))."""
-    if not rest:
-        return parent_rot
-    a, b = np.array(rest), np.array(now)
-    a_n = a / np.maximum(np.linalg.norm(a, axis=1, keepdims=True), 1e-12)
-    b_n = b / np.maximum(np.linalg.norm(b, axis=1, keepdims=True), 1e-12)
-    if len(rest) >= 2 and np.linalg.matrix_rank(a_n, tol=1e-3) >= 2 and np.linalg.matrix_rank(b_n, tol=1e-3) >= 2:
-        rot, _ = Rotation.align_vectors(b_n, a_n)      # Kabsch: rot @ a_n ≈ b_n
-        return rot.as_matrix()
-    # one usable child: the minimal swing from where the parent's rotation carries it
-    swing = _min_rotation(parent_rot @ a_n[0], b_n[0])
-    return swing @ parent_rot
+def _fit_rotations(parent_rot, rest, now):
+    """World rotations (F, 3, 3) taking the rest child bones onto the current ones, every frame at once.
+
+    parent_rot : (F, 3, 3); rest : (C, 3) rest bone vectors; now : (F, C, 3) current bone vectors, zero
+    where the child is not tracked. Two or more independent directions: Kabsch (SVD of sum a b^T, with
+    the reflection removed). One direction: the minimal swing from where the parent's rotation carries
+    it. None: the parent's rotation.
+    """
+    la = np.linalg.norm(rest, axis=1)
+    lb = np.linalg.norm(now, axis=2)
+    use = (la[None] > 1e-9) & (lb > 1e-9)      # a zero-length bone (coincident joints) has no direction
+    a = np.where(use[..., None], rest[None] / np.maximum(la, 1e-12)[None, :, None], 0.0)      # (F, C, 3)
+    b = np.where(use[..., None], now / np.maximum(lb, 1e-12)[..., None], 0.0)
+    h = np.einsum("fci,fcj->fij", a, b)
+    u, sv, vt = np.linalg.svd(h)
+    d = np.sign(np.linalg.det(vt.transpose(0, 2, 1) @ u.transpose(0, 2, 1)))
+    d[d == 0] = 1.0
+    fix = np.tile(np.eye(3), (len(h), 1, 1))
+    fix[:, 2, 2] = d
+    kabsch = vt.transpose(0, 2, 1) @ fix @ u.transpose(0, 2, 1)
+    planar = sv[:, 1] > 1e-3 * np.maximum(sv[:, 0], 1e-12)
+    # one direction (or collinear ones): swing the parent-carried rest direction onto the current one
+    a1, b1 = a.sum(axis=1), b.sum(axis=1)
+    swing = _min_rotations(np.einsum("fij,fj->fi", parent_rot, a1), b1) @ parent_rot
+    out = np.where(planar[:, None, None], kabsch, swing)
+    return np.where(use.any(axis=1)[:, None, None], out, parent_rot)
 
 
-def _min_rotation(u, v):
-    """The smallest rotation turning unit vector u onto unit vector v."""
+def _min_rotations(u, v):
+    """(F, 3, 3) smallest rotations turning directions u (F, 3) onto v (F, 3) (Rodrigues)."""
+    u = u / np.maximum(np.linalg.norm(u, axis=1, keepdims=True), 1e-12)
+    v = v / np.maximum(np.linalg.norm(v, axis=1, keepdims=True), 1e-12)
     axis = np.cross(u, v)
-    s, c = np.linalg.norm(axis), float(np.clip(u @ v, -1.0, 1.0))
-    if s < 1e-12:
-        if c > 0:
-            return np.eye(3)
-        # opposite: half a turn about any axis perpendicular to u
-        perp = np.cross(u, [1.0, 0.0, 0.0])
-        if np.linalg.norm(perp) < 1e-6:
-            perp = np.cross(u, [0.0, 1.0, 0.0])
-        return Rotation.from_rotvec(np.pi * perp / np.linalg.norm(perp)).as_matrix()
-    return Rotation.from_rotvec(axis / s * math.atan2(s, c)).as_matrix()
+    s2 = np.einsum("fi,fi->f", axis, axis)
+    c = np.einsum("fi,fi->f", u, v)
+    k = np.zeros((len(u), 3, 3))
+    k[:, 0, 1], k[:, 0, 2], k[:, 1, 2] = -axis[:, 2], axis[:, 1], -axis[:, 0]
+    k[:, 1, 0], k[:, 2, 0], k[:, 2, 1] = axis[:, 2], -axis[:, 1], axis[:, 0]
+    scale = np.where(s2 > 1e-24, (1.0 - c) / np.maximum(s2, 1e-24), 0.5)
+    rot = np.eye(3) + k + scale[:, None, None] * (k @ k)
+    # opposite directions: half a turn about an axis perpendicular to u
+    flip = (s2 <= 1e-24) & (c < 0)
+    if flip.any():
+        perp = np.cross(u[flip], [1.0, 0.0, 0.0])
+        weak = np.linalg.norm(perp, axis=1) < 1e-6
+        perp[weak] = np.cross(u[flip][weak], [0.0, 1.0, 0.0])
+        perp /= np.linalg.norm(perp, axis=1, keepdims=True)
+        rot[flip] = 2 * np.einsum("fi,fj->fij", perp, perp) - np.eye(3)
+    return rot
 
 
 def _euler_degrees(rotations):

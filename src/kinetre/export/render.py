@@ -36,18 +36,15 @@ void main() {
 _MESH_FS = """
 #version 330
 uniform vec3 light_dir; uniform vec3 eye; uniform mat4 light_view_proj;
-uniform sampler2D shadow_map; uniform sampler2D albedo_map; uniform bool use_texture;
+uniform sampler2DShadow shadow_map; uniform sampler2D albedo_map; uniform bool use_texture;
 in vec3 v_pos; in vec3 v_normal; in vec2 v_uv; in vec4 v_color;
 out vec4 frag;
 float shadow(vec3 p, float bias) {
+    // one hardware-compared, bilinearly filtered lookup: a 2x2 PCF for the price of one fetch
     vec4 q = light_view_proj * vec4(p, 1.0);
     vec3 s = q.xyz / q.w * 0.5 + 0.5;
     if (s.x < 0.0 || s.x > 1.0 || s.y < 0.0 || s.y > 1.0 || s.z > 1.0) return 1.0;
-    vec2 texel = 1.0 / vec2(textureSize(shadow_map, 0));
-    float lit = 0.0;
-    for (int x = -1; x <= 1; ++x) for (int y = -1; y <= 1; ++y)
-        lit += (s.z - bias <= texture(shadow_map, s.xy + vec2(x, y) * texel).r) ? 1.0 : 0.0;
-    return lit / 9.0;
+    return texture(shadow_map, vec3(s.xy, s.z - bias));
 }
 void main() {
     vec3 n = normalize(v_normal);
@@ -80,7 +77,7 @@ void main() { v_pos = in_pos; gl_Position = view_proj * vec4(in_pos, 1.0); }
 
 _GROUND_FS = """
 #version 330
-uniform mat4 light_view_proj; uniform sampler2D shadow_map; uniform vec3 centre; uniform float extent;
+uniform mat4 light_view_proj; uniform sampler2DShadow shadow_map; uniform vec3 centre; uniform float extent;
 uniform float tile; uniform vec3 sky;
 in vec3 v_pos;
 out vec4 frag;
@@ -89,11 +86,12 @@ void main() {
     vec3 s = q.xyz / q.w * 0.5 + 0.5;
     float lit = 1.0;
     if (s.x > 0.0 && s.x < 1.0 && s.y > 0.0 && s.y < 1.0 && s.z < 1.0) {
-        vec2 texel = 1.0 / vec2(textureSize(shadow_map, 0));
-        lit = 0.0;
-        for (int x = -2; x <= 2; ++x) for (int y = -2; y <= 2; ++y)
-            lit += (s.z - 0.003 <= texture(shadow_map, s.xy + vec2(x, y) * texel).r) ? 1.0 : 0.0;
-        lit /= 25.0;
+        // four filtered lookups 1.5 texels apart: a soft 4x4-texel penumbra
+        vec2 d = 0.75 / vec2(textureSize(shadow_map, 0));
+        lit = 0.25 * (texture(shadow_map, vec3(s.xy + vec2(-d.x, -d.y), s.z - 0.003))
+                    + texture(shadow_map, vec3(s.xy + vec2(d.x, -d.y), s.z - 0.003))
+                    + texture(shadow_map, vec3(s.xy + vec2(-d.x, d.y), s.z - 0.003))
+                    + texture(shadow_map, vec3(s.xy + vec2(d.x, d.y), s.z - 0.003)));
     }
     vec2 cell = floor((v_pos.xz - centre.xz) / tile);
     float checker = mod(cell.x + cell.y, 2.0) * 0.04;
@@ -135,6 +133,49 @@ def orthographic(half_w: float, half_h: float, near: float, far: float) -> np.nd
     m[0, 0], m[1, 1] = 1 / half_w, 1 / half_h
     m[2, 2], m[2, 3] = -2 / (far - near), -(far + near) / (far - near)
     return m
+
+
+def cluster_lod(vertices: np.ndarray, faces: np.ndarray, max_faces: int) -> tuple[np.ndarray, np.ndarray]:
+    """A lighter mesh for drawing: vertex clustering on a uniform grid (Rossignac & Borrel 1993).
+
+    A 640x480 frame has 0.3 M pixels, so a mesh with more triangles than that only costs the CPU
+    rasteriser time. Every vertex is snapped to the first vertex of its grid cell and faces that collapse
+    are dropped; the kept vertices are original ones, so they are skinned exactly like the full mesh.
+
+    Parameters
+    ----------
+    vertices : (V, 3) float, faces : (F, 3) int
+    max_faces : int
+        Triangle budget; the grid is refined until the result fits it.
+
+    Returns
+    -------
+    keep : (K,) int64
+        Indices of the original vertices drawn.
+    lod_faces : (F', 3) int32
+        Faces indexing into `keep`; F' <= max_faces. `faces` itself when F <= max_faces.
+    """
+    faces = np.asarray(faces)
+    if len(faces) <= max_faces:
+        return np.arange(len(vertices)), faces.astype(np.int32)
+    lo = vertices.min(axis=0)
+    tri = vertices[faces]
+    area = 0.5 * np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1).sum()
+    cell = np.sqrt(2.0 * area / max_faces)          # a closed surface keeps ~2 triangles per occupied cell
+    for _ in range(20):
+        ijk = np.floor((vertices - lo) / cell).astype(np.int64)
+        dims = ijk.max(axis=0) + 1
+        key = (ijk[:, 0] * dims[1] + ijk[:, 1]) * dims[2] + ijk[:, 2]     # one integer per cell: fast unique
+        _, first, inverse = np.unique(key, return_index=True, return_inverse=True)
+        f = inverse.reshape(-1)[faces]
+        f = f[(f[:, 0] != f[:, 1]) & (f[:, 1] != f[:, 2]) & (f[:, 0] != f[:, 2])]
+        srt = np.sort(f, axis=1)
+        n = len(first)
+        f = f[np.unique((srt[:, 0] * n + srt[:, 1]) * n + srt[:, 2], return_index=True)[1]]
+        if len(f) <= max_faces:
+            return first.astype(np.int64), f.astype(np.int32)
+        cell *= 1.25
+    return first.astype(np.int64), f[:max_faces].astype(np.int32)
 
 
 class Camera:
@@ -186,7 +227,7 @@ class MeshRenderer:
     positions and normals change."""
 
     def __init__(self, vertex_count: int, faces, camera: Camera, size=(640, 480), uvs=None, colors=None,
-                 texture=None, shadow_size: int = 2048):
+                 texture=None, shadow_size: int = 1024, samples: int = 4):
         try:
             import moderngl
         except ImportError as err:
@@ -231,7 +272,7 @@ class MeshRenderer:
         self._shadow_tex = ctx.depth_texture((shadow_size, shadow_size))
         self._shadow_tex.filter = (moderngl.LINEAR, moderngl.LINEAR)
         self._shadow_tex.repeat_x = self._shadow_tex.repeat_y = False
-        self._shadow_tex.compare_func = ""      # read raw depths with texture(); we compare (and filter) ourselves
+        self._shadow_tex.compare_func = "<="    # sampler2DShadow: compared and bilinearly filtered in hardware
         self._shadow_fbo = ctx.framebuffer(depth_attachment=self._shadow_tex)
 
         self._albedo = ctx.texture(texture.size, 3, np.asarray(texture.convert("RGB"))[::-1].tobytes()) \
@@ -239,7 +280,7 @@ class MeshRenderer:
         self._albedo.build_mipmaps()
         self._albedo.filter = (moderngl.LINEAR_MIPMAP_LINEAR, moderngl.LINEAR)
 
-        samples = 4 if ctx.max_samples >= 4 else 0
+        samples = samples if ctx.max_samples >= samples else 0
         self._msaa = ctx.framebuffer(color_attachments=[ctx.renderbuffer(self.size, 4, samples=samples)],
                                      depth_attachment=ctx.depth_renderbuffer(self.size, samples=samples))
         self._out = ctx.framebuffer(color_attachments=[ctx.renderbuffer(self.size, 4)])

@@ -21,7 +21,7 @@ from ..errors import ExportError
 from ..graph.graph import DeformationGraph
 from ..mesh.mesh import Mesh
 from ..skeleton.models import Skeleton
-from .render import Camera, MeshRenderer
+from .render import Camera, MeshRenderer, cluster_lod
 
 _CODECS = {
     # yuv420p + faststart: plays in browsers and QuickTime; CRF 20 is visually clean for flat-shaded scenes
@@ -35,7 +35,7 @@ BONE_RGB, JOINT_RGB = (30, 110, 235), (255, 140, 0)
 
 def write_video(path, mesh: Mesh, graph: DeformationGraph, poses: list[GraphPose], fps: float,
                 skeletons: list[list[Skeleton]] | None = None, size=(640, 480), *,
-                on_frame: Callable[[int], None] | None = None) -> None:
+                on_frame: Callable[[int], None] | None = None, max_faces: int = 60_000) -> None:
     """Render the take to an .mp4 (H.264) or .webm (VP9) file, one video frame per pose.
 
     Parameters
@@ -54,6 +54,9 @@ def write_video(path, mesh: Mesh, graph: DeformationGraph, poses: list[GraphPose
         Even numbers (the 4:2:0 chroma subsampling needs them).
     on_frame : callable, optional
         Called with the frame index after each frame is encoded (for progress bars).
+    max_faces : int
+        Larger meshes are drawn through a vertex-clustered level of detail of this many triangles
+        (`render.cluster_lod`): at 640x480 the difference is sub-pixel and the frame rate stays usable.
 
     Raises
     ------
@@ -84,8 +87,12 @@ def write_video(path, mesh: Mesh, graph: DeformationGraph, poses: list[GraphPose
     texture = material_image(mesh.material) if mesh.uvs is not None else None
     if texture is not None:
         colors = np.full((len(mesh.vertices), 4), 255, np.uint8)   # the texture alone gives the colour
-    renderer = MeshRenderer(len(mesh.vertices), mesh.faces, camera, (width, height), uvs=mesh.uvs, colors=colors,
-                            texture=texture)
+    keep, faces = cluster_lod(mesh.vertices, mesh.faces, max_faces)
+    uvs = None if mesh.uvs is None else mesh.uvs[keep]
+    colors = None if colors is None else colors[keep]
+    vertices, normals = mesh.vertices[keep], mesh.normals[keep]
+    joints, weights = graph.vertex_nodes[keep], graph.vertex_weights[keep]
+    renderer = MeshRenderer(len(keep), faces, camera, (width, height), uvs=uvs, colors=colors, texture=texture)
     rate = Fraction(fps).limit_denominator(1001)
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
@@ -98,10 +105,9 @@ def write_video(path, mesh: Mesh, graph: DeformationGraph, poses: list[GraphPose
     try:
         for k, pose in enumerate(poses):
             m = pose.node_matrices(graph.nodes)
-            positions = skin_vertices(mesh.vertices, graph.vertex_nodes, graph.vertex_weights, m)
+            positions = skin_vertices(vertices, joints, weights, m)
             m[:, :3, 3] = 0.0               # normals follow the blended linear part only
-            normals = skin_vertices(mesh.normals, graph.vertex_nodes, graph.vertex_weights, m)
-            frame = renderer.render(positions, normals)
+            frame = renderer.render(positions, skin_vertices(normals, joints, weights, m))
             if skeletons is not None and skeletons[k]:
                 frame = draw_skeletons(frame, skeletons[k], camera)
             proc.stdin.write(np.ascontiguousarray(frame).tobytes())

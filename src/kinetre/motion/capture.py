@@ -118,7 +118,12 @@ def capture_image(path: str | os.PathLike, settings: CaptureSettings = CaptureSe
 
 def _open(source, label: str):
     import cv2
-    cap = cv2.VideoCapture(source)
+    level = cv2.getLogLevel()
+    cv2.setLogLevel(0)  # silent while opening: our one-line error replaces OpenCV's log lines
+    try:
+        cap = cv2.VideoCapture(source)
+    finally:
+        cv2.setLogLevel(level)
     if not cap.isOpened():
         cap.release()
         raise BadMotionError(f"{label}: cannot open (not a readable video, or no such camera)")
@@ -150,7 +155,7 @@ def capture_video(path: str | os.PathLike, settings: CaptureSettings = CaptureSe
     bar = None
     if progress:
         from tqdm import tqdm
-        bar = tqdm(total=total, unit="frame", desc="tracking", leave=False)
+        bar = tqdm(total=total, unit="frame", desc="tracking", leave=False, disable=None)  # terminals only
     try:
         with PoseTracker(settings) as tracker:
             while max_frames is None or len(frames) < max_frames:
@@ -172,14 +177,16 @@ def capture_video(path: str | os.PathLike, settings: CaptureSettings = CaptureSe
     return take
 
 
-def capture_camera(index: int, on_frame, settings: CaptureSettings = CaptureSettings(),
+def capture_camera(index: int | str, on_frame, settings: CaptureSettings = CaptureSettings(),
                    seconds: float | None = None, max_frames: int | None = None) -> int:
-    """Track a webcam until Ctrl-C, `seconds` or `max_frames`, calling `on_frame(skeleton, t)` per frame.
+    """Track a webcam until Ctrl-C, `seconds` or `max_frames`, calling `on_frame(skeleton, t)` per frame
+    with `t` the wall-clock seconds since the start.
 
+    `index` is a camera number, or a string OpenCV opens as a live source (an RTSP URL, a device path).
     Returns the number of frames captured. Raises BadMotionError if the camera cannot be opened.
     """
     import time
-    cap = _open(int(index), f"camera {index}")
+    cap = _open(index if isinstance(index, str) else int(index), f"camera {index}")
     count, start = 0, time.monotonic()
     try:
         with PoseTracker(settings) as tracker:

@@ -35,7 +35,7 @@ class Take:
     Examples
     --------
     >>> import kinetre
-    >>> t = Take(kinetre.KINECT20, np.zeros((3, 20, 3)), np.ones((3, 20), bool), 30.0)
+    >>> t = Take(kinetre.KINECT20, np.zeros((3, 20, 3)), np.ones((3, 20), bool), 20.0)
     >>> len(t), t.frame(2).positions.shape, t.duration
     (3, (20, 3), 0.1)
     """

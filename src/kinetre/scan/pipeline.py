@@ -112,7 +112,7 @@ def scan(frames: str | Path, out_path: str | Path, *, segment: str | None = None
          voxel: float = 0.006, intrinsics: str | Path | Intrinsics | None = None, camera: str | None = None,
          depth_scale: float | None = None, depth_max: float = 3.0, target_faces: int | None = None,
          min_component: float = 0.02, tracking: TrackingParams = TrackingParams(), progress: bool = True,
-         seed: int = 0) -> ScanResult:
+         threads: int = 1, seed: int = 0) -> ScanResult:
     """Reconstruct the RGB-D sequence in `frames` and write the mesh to `out_path` (.ply, .obj or .glb).
 
     segment : None (whole scene), "plane" (remove the supporting plane, keep the object) or "change" (needs
@@ -122,7 +122,18 @@ def scan(frames: str | Path, out_path: str | Path, *, segment: str | None = None
               the largest component are removed
     The mesh is in metres, +Y up: the first camera's frame turned upright, or with `segment="plane"` the plane
     is y = 0 and the object is centred above the origin.
+    threads : OpenMP threads for Open3D's kernels. One is the default because on a shared CPU OpenMP's
+              spin-waiting threads made each odometry call 10-50x slower in our measurements.
     """
+    from threadpoolctl import threadpool_limits
+    with threadpool_limits(limits=max(1, int(threads)), user_api="openmp"):
+        return _scan(frames, out_path, segment=segment, before=before, voxel=voxel, intrinsics=intrinsics,
+                     camera=camera, depth_scale=depth_scale, depth_max=depth_max, target_faces=target_faces,
+                     min_component=min_component, tracking=tracking, progress=progress, seed=seed)
+
+
+def _scan(frames, out_path, *, segment, before, voxel, intrinsics, camera, depth_scale, depth_max, target_faces,
+          min_component, tracking, progress, seed) -> ScanResult:
     start = time.perf_counter()
     if segment not in SEGMENTS:
         raise BadScanError(f"unknown segmentation {segment!r}; choose plane or change")

@@ -132,7 +132,7 @@ def cut_to_voxels(mesh: ScanMesh, keys: np.ndarray, voxel_size: float, dilation:
         offsets = np.stack(np.meshgrid(span, span, span, indexing="ij"), -1).reshape(-1, 3)
         grown = np.unique((keys[:, None, :] + offsets[None]).reshape(-1, 3), axis=0)
     codes = np.sort(_codes(grown))
-    vertex_keys = np.round(mesh.vertices / voxel_size).astype(np.int64)
+    vertex_keys = np.round(mesh.vertices / voxel_size - 0.5).astype(np.int64)  # voxel k samples (k + 1/2) v
     cut = keep_vertices(mesh, _lookup(codes, _codes(vertex_keys)) >= 0)
     if len(cut.faces) == 0:
         raise BadScanError("change segmentation: no surface lies where the scans changed")

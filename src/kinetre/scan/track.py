@@ -4,8 +4,11 @@ For frame k with the previous accepted frame k-1 at pose T_{k-1} (camera-to-worl
 
 1. initial guess: RGB-D odometry (Open3D hybrid depth + photometric) from frame k to frame k-1 gives
    T_{k-1,k}; the prediction is T_pred = T_{k-1} T_{k-1,k};
-2. the fused model is ray cast from T_pred and frame k is aligned to that rendering by multi-scale projective
-   point-to-plane ICP, giving T_k = T_pred T_pred,k;
+2. the fused model is ray cast (depth and fused colour) from T_pred and frame k is aligned to that rendering by
+   multi-scale projective ICP, giving T_k = T_pred T_pred,k. The default objective is Open3D's hybrid one:
+   point-to-plane depth residuals plus a photometric term (Steinbruecker et al. 2011). Pure point-to-plane
+   (`model_method="point-to-plane"`, KinectFusion's choice) slides along large planes: on our synthetic object
+   on a floor it stayed 3 cm off even when started at the true pose, while hybrid stayed within 2 mm;
 3. the alignment is scored against the model: `fitness` = fraction of the frame's valid pixels that land within
    `inlier_distance` of the model's surface, `rmse` = RMS depth residual of those inliers (metres). A frame
    below `min_fitness` or above `max_rmse`, or whose odometry failed, is lost and must not be fused.
@@ -35,6 +38,7 @@ class TrackingParams:
     inlier_distance: float = 0.03
     depth_outlier: float = 0.07
     icp_iterations: tuple[int, ...] = (10, 5, 3)
+    model_method: str = "hybrid"
     odometry_iterations: tuple[int, ...] = (6, 4, 2)
 
 
@@ -118,6 +122,11 @@ def track_frame(volume: TSDFVolume, color: np.ndarray, depth: np.ndarray, camera
     o3d = open3d()
     odo = o3d.t.pipelines.odometry
     frame = _rgbd(o3d, color, depth)
+    methods = {"hybrid": odo.Method.Hybrid, "point-to-plane": odo.Method.PointToPlane}
+    if params.model_method not in methods:
+        from ..errors import BadScanError
+        raise BadScanError(f"unknown tracking method {params.model_method!r}; choose {', '.join(methods)}")
+    method = methods[params.model_method]
     starts = []
     if previous is not None:
         prev_color, prev_depth, prev_pose = previous
@@ -135,7 +144,7 @@ def track_frame(volume: TSDFVolume, color: np.ndarray, depth: np.ndarray, camera
         if not np.any(model_depth > 0):
             continue
         refine = _odometry(o3d, frame, _rgbd(o3d, model_color, model_depth), camera, volume.depth_max,
-                           params.icp_iterations, odo.Method.PointToPlane, params.depth_outlier)
+                           params.icp_iterations, method, params.depth_outlier)
         if refine is None:
             continue
         fitness, rmse = agreement(depth, model_depth, camera, refine, params.inlier_distance)

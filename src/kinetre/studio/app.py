@@ -104,6 +104,7 @@ class Studio:
     hub: Hub
     scene: Scene
     player: object | None = None
+    nodes: int = NODES  # graph size for uploaded meshes
     jobs: dict[int, Job] = field(default_factory=dict)
     takes_dir: Path = field(default_factory=lambda: Path(tempfile.mkdtemp(prefix="kinetre-takes-")))
     stats: dict[str, ClientStats] = field(default_factory=dict)
@@ -186,7 +187,7 @@ class Studio:
 
         def work() -> None:
             try:
-                mesh, graph = prepare_mesh(str(path), progress=progress)
+                mesh, graph = prepare_mesh(str(path), self.nodes, progress=progress)
             except KinetreError as exc:
                 job.error = str(exc).replace(str(folder) + os.sep, "")
                 job.stage, job.done = "failed", True
@@ -250,7 +251,7 @@ def create_app(mesh_path: str | None = None, nodes: int = NODES, sample_motion: 
     path = mesh_path or str(data_path("spot.obj"))
     mesh, graph = prepare_mesh(path, nodes)
     hub = Hub()
-    studio = Studio(hub, Scene(hub, mesh, graph, Path(path).name))
+    studio = Studio(hub, Scene(hub, mesh, graph, Path(path).name), nodes=nodes)
     if sample_motion and mesh_path is None:
         studio.player = sample_player(hub)
     clients = itertools.count(1)
@@ -420,10 +421,14 @@ def sample_player(hub: Hub):
     return MotionPlayer(hub, frames, fps, SAMPLE_CLIENT)
 
 
-def run_studio(mesh_path: str | None, host: str = "127.0.0.1", port: int = 8000, open_browser: bool = True) -> None:
-    """Serve the studio until interrupted (what `kinetre studio` runs). Raises KinetreError on a bad mesh."""
+def run_studio(mesh_path: str | None, host: str = "127.0.0.1", port: int = 8000, open_browser: bool = True,
+               nodes: int = NODES, sample_motion: bool = True) -> None:
+    """Serve the studio until interrupted (what `kinetre studio` runs). Raises KinetreError on a bad mesh.
+
+    Without `mesh_path` the sample mesh (Spot) is loaded and, with `sample_motion`, a CMU walk drives it.
+    """
     import uvicorn
-    app = create_app(mesh_path)
+    app = create_app(mesh_path, nodes, sample_motion)
     url = f"http://{'127.0.0.1' if host in ('0.0.0.0', '::') else host}:{port}/"
     if open_browser:
         threading.Timer(1.0, webbrowser.open, args=(url,)).start()

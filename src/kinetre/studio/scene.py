@@ -218,15 +218,27 @@ class Scene:
     async def run(self) -> None:
         """Consume skeleton frames and publish transforms until cancelled."""
         sub = self.hub.subscribe(SKELETONS)
-        feeder = asyncio.get_running_loop().create_task(self._feed(sub))
+        loop = asyncio.get_running_loop()
+        helpers = [loop.create_task(self._feed(sub)), loop.create_task(self._heartbeat())]
         try:
             while True:
                 await self._dirty.wait()
                 self._dirty.clear()
                 await self.solve_once()
         finally:
-            feeder.cancel()
+            for task in helpers:
+                task.cancel()
             sub.close()
+
+    async def _heartbeat(self, period: float = 1.0) -> None:
+        """Re-publish the state when users came or frame counts moved (pages show who is connected)."""
+        last = None
+        while True:
+            await asyncio.sleep(period)
+            now = [(u.client, u.frames) for u in self.users.values()]
+            if now != last:
+                self.publish_state()
+                last = now
 
     async def _feed(self, sub) -> None:
         while True:

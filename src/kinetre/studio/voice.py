@@ -20,6 +20,7 @@ import io
 import itertools
 import os
 import threading
+import warnings
 from dataclasses import dataclass
 
 import numpy as np
@@ -42,7 +43,7 @@ VERBS = {"possess": "possess", "attach": "possess", "release": "release", "let g
 # cover English well enough to out-score a forced command on other speech; all 39 phones cost ~8x the
 # decode time for no gain on our fixtures.
 GARBAGE_PHONES = ("AA", "IY", "UW", "EH", "AH", "S", "T", "N", "L", "R", "M", "K")
-GARBAGE_WEIGHT = 1e-3
+GARBAGE_WEIGHT = 1e-6
 
 
 class BadAudioError(KinetreError):
@@ -101,7 +102,9 @@ def pcm16k(audio: bytes | np.ndarray, sample_rate: int = SAMPLE_RATE, source: st
     """
     if isinstance(audio, (bytes, bytearray, memoryview)):
         try:
-            sample_rate, data = wavfile.read(io.BytesIO(bytes(audio)))
+            with warnings.catch_warnings():  # unknown chunks (LIST, fact) are skipped, not a problem
+                warnings.simplefilter("ignore", wavfile.WavFileWarning)
+                sample_rate, data = wavfile.read(io.BytesIO(bytes(audio)))
         except (ValueError, EOFError, OSError) as exc:
             raise BadAudioError(f"{source}: not a readable WAV file ({exc})") from None
         scale = {"u1": 1 / 128, "i2": 1 / 32768, "i4": 1 / 2147483648}
@@ -138,7 +141,7 @@ def pcm16k(audio: bytes | np.ndarray, sample_rate: int = SAMPLE_RATE, source: st
     if sample_rate != SAMPLE_RATE:
         g = np.gcd(SAMPLE_RATE, sample_rate)
         x = resample_poly(x, SAMPLE_RATE // g, sample_rate // g)
-    return np.clip(np.round(x * 32767), -32768, 32767).astype(np.int16)
+    return np.clip(np.round(x * 32768), -32768, 32767).astype(np.int16)
 
 
 def peak_level_dbfs(pcm: np.ndarray, frame: int = SAMPLE_RATE // 50) -> float:
@@ -192,6 +195,10 @@ class Recogniser:
         pcm = pcm16k(audio, sample_rate)
         if peak_level_dbfs(pcm) < MIN_LEVEL_DBFS:
             return None
+        # Clips cut tight at the last phone end mid-path ("attach" + its release heard as "the"): the
+        # grammar's closing silence needs a few frames of quiet to reach the final state.
+        pad = np.zeros(SAMPLE_RATE // 4, np.int16)
+        pcm = np.concatenate([pad, pcm, pad])
         with self._lock:
             self._decoder.start_utt()
             self._decoder.process_raw(pcm.tobytes(), no_search=False, full_utt=True)

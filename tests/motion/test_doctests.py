@@ -1,0 +1,18 @@
+"""The Examples blocks in the motion modules' docstrings run and hold."""
+from __future__ import annotations
+
+import doctest
+
+import pytest
+
+import kinetre.motion.bvh
+import kinetre.motion.filters
+import kinetre.motion.source
+import kinetre.motion.stream
+
+
+@pytest.mark.parametrize("module", [kinetre.motion.bvh, kinetre.motion.filters, kinetre.motion.source,
+                                    kinetre.motion.stream])
+def test_docstring_examples(module):
+    result = doctest.testmod(module, optionflags=doctest.NORMALIZE_WHITESPACE)
+    assert result.attempted > 0 and result.failed == 0

@@ -1,0 +1,57 @@
+"""A studio server in a subprocess on 127.0.0.1 (so clients in the test process do not share its GIL)."""
+from __future__ import annotations
+
+import os
+import socket
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import httpx
+import pytest
+
+ROOT = Path(__file__).parents[2]
+
+
+def free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+def start_server(mesh: str | None = None, nodes: int = 128, sample_motion: bool = False, timeout: float = 120):
+    """(process, base URL) of a running studio; the caller terminates the process."""
+    port = free_port()
+    code = (f"from kinetre.studio.app import run_studio; run_studio({mesh!r}, '127.0.0.1', {port}, False, "
+            f"nodes={nodes}, sample_motion={sample_motion})")
+    env = dict(os.environ, PYTHONUNBUFFERED="1")
+    proc = subprocess.Popen([sys.executable, "-c", code], env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT)
+    url = f"http://127.0.0.1:{port}"
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        if proc.poll() is not None:
+            raise RuntimeError(f"studio exited: {proc.stdout.read().decode()[-2000:]}")
+        try:
+            if httpx.get(url + "/api/state", timeout=2).status_code == 200:
+                return proc, url
+        except httpx.HTTPError:
+            time.sleep(0.3)
+    proc.kill()
+    raise RuntimeError("studio did not start in time")
+
+
+@pytest.fixture(scope="module")
+def studio():
+    proc, url = start_server()
+    yield url
+    proc.terminate()
+    proc.wait(10)
+
+
+@pytest.fixture(scope="session")
+def walk(data_dir):
+    """The CMU walk as Kinect-20 skeletons (metres, +Y up), 30 fps."""
+    from kinetre.motion.bvh import load_bvh
+    take = load_bvh(data_dir / "bvh" / "cmu_12_01_walk.bvh")
+    return [take.frame(i) for i in range(0, len(take), 4)]

@@ -1,0 +1,89 @@
+"""A minimal studio WebSocket client for tests and the benchmark (what a capture page does)."""
+from __future__ import annotations
+
+import asyncio
+import json
+import time
+
+import numpy as np
+from websockets.asyncio.client import connect
+
+from kinetre.studio.protocol import unpack_transforms
+
+
+def frame_message(seq: int, skeleton, t: float | None = None) -> str:
+    rows = [p.tolist() if ok else None for p, ok in zip(skeleton.positions, skeleton.tracked)]
+    return json.dumps({"type": "skeleton", "seq": seq, "t": time.time() * 1000 if t is None else t,
+                       "model": skeleton.model.name, "positions": rows, "tracked": skeleton.tracked.tolist()})
+
+
+class StudioClient:
+    """Connects, remembers the newest state/transforms, and waits for conditions on them."""
+
+    def __init__(self, url: str):
+        self.url = url.replace("http://", "ws://") + "/ws"
+        self.client = ""
+        self.state: dict | None = None
+        self.transforms: tuple | None = None  # (seq, mesh_id, t_source, t_out, matrices)
+        self.transform_count = 0
+        self.messages: list[dict] = []
+        self.arrivals: list[tuple[float, float]] = []  # (t_source, time received) per transform block
+        self._ws = None
+        self._reader = None
+        self._changed = asyncio.Event()
+
+    async def __aenter__(self):
+        self._ws = await connect(self.url, max_size=1 << 22)
+        self._reader = asyncio.get_running_loop().create_task(self._read())
+        await self.wait(lambda c: c.client and c.state is not None and c.transforms is not None)
+        return self
+
+    async def __aexit__(self, *exc):
+        self._reader.cancel()
+        await self._ws.close()
+
+    async def _read(self):
+        async for data in self._ws:
+            now = time.time() * 1000
+            if isinstance(data, bytes):
+                self.transforms = unpack_transforms(data)
+                self.transform_count += 1
+                self.arrivals.append((self.transforms[2], now))
+            else:
+                msg = json.loads(data)
+                self.messages.append(msg)
+                if msg["type"] == "welcome":
+                    self.client = msg["client"]
+                elif msg["type"] == "state":
+                    self.state = msg
+            self._changed.set()
+
+    async def send(self, message) -> None:
+        await self._ws.send(message if isinstance(message, (str, bytes)) else json.dumps(message))
+
+    async def wait(self, predicate, timeout: float = 30.0):
+        deadline = time.monotonic() + timeout
+        while not predicate(self):
+            remaining = deadline - time.monotonic()
+            if remaining <= 0:
+                raise TimeoutError("condition not met; last messages: " + json.dumps(self.messages[-3:])[:800])
+            self._changed.clear()
+            try:
+                await asyncio.wait_for(self._changed.wait(), min(remaining, 0.5))
+            except asyncio.TimeoutError:
+                pass
+
+    def me(self) -> dict | None:
+        for u in (self.state or {}).get("users", []):
+            if u["client"] == self.client:
+                return u
+        return None
+
+    async def stats(self, timeout: float = 30.0) -> dict:
+        count = len(self.messages)
+        await self.send({"type": "stats"})
+        await self.wait(lambda c: any(m["type"] == "stats" for m in c.messages[count:]), timeout)
+        return [m for m in self.messages[count:] if m["type"] == "stats"][-1]
+
+    def matrices(self) -> np.ndarray:
+        return self.transforms[4]

@@ -1,0 +1,69 @@
+"""The embedded hub: NATS subject matching and latest-wins delivery (SPEC §7)."""
+import asyncio
+
+import pytest
+
+from kinetre.studio.channels import Frame, Hub, subject_matches
+
+
+@pytest.mark.parametrize("pattern, subject, expected", [
+    ("kinetre.skeleton.*", "kinetre.skeleton.c1", True),
+    ("kinetre.skeleton.*", "kinetre.skeleton", False),
+    ("kinetre.skeleton.*", "kinetre.skeleton.c1.x", False),
+    ("kinetre.>", "kinetre.skeleton.c1", True),
+    ("kinetre.>", "kinetre", False),
+    ("kinetre.transforms", "kinetre.transforms", True),
+    ("kinetre.transforms", "kinetre.state", False),
+])
+def test_subject_matching_follows_nats(pattern, subject, expected):
+    assert subject_matches(pattern, subject) is expected
+
+
+def test_slow_subscriber_gets_only_the_newest_frame_per_subject():
+    async def run():
+        hub = Hub()
+        sub = hub.subscribe("kinetre.skeleton.*")
+        for seq in range(1, 1001):
+            hub.publish(Frame("kinetre.skeleton.a", seq, float(seq), b"a"))
+            if seq % 10 == 0:
+                hub.publish(Frame("kinetre.skeleton.b", seq, float(seq), b"b"))
+        got = [await sub.next(timeout=1) for _ in range(2)]
+        rest = await sub.next(timeout=0.05)
+        return got, rest, sub.skipped
+
+    got, rest, skipped = asyncio.run(run())
+    assert [(f.subject, f.seq) for f in got] == [("kinetre.skeleton.a", 1000), ("kinetre.skeleton.b", 1000)]
+    assert rest is None  # nothing queued behind the newest frames
+    assert skipped == 999 + 99
+
+
+def test_subscribers_are_independent_and_closed_ones_stop_receiving():
+    async def run():
+        hub = Hub()
+        fast, slow = hub.subscribe("t"), hub.subscribe("t", "u")
+        seen = []
+        for seq in range(5):
+            hub.publish(Frame("t", seq, 0.0, b""))
+            seen.append((await fast.next(timeout=1)).seq)
+        hub.publish(Frame("u", 7, 0.0, b""))
+        slow_frames = [(await slow.next(timeout=1)).seq, (await slow.next(timeout=1)).seq]
+        fast.close()
+        hub.publish(Frame("t", 9, 0.0, b""))
+        return seen, slow_frames, await fast.next(timeout=0.05), len(hub._subs)
+
+    seen, slow_frames, after_close, subs = asyncio.run(run())
+    assert seen == [0, 1, 2, 3, 4]
+    assert slow_frames == [4, 7]
+    assert after_close is None and subs == 1
+
+
+def test_next_times_out_without_frames():
+    async def run():
+        sub = Hub().subscribe("x")
+        loop = asyncio.get_running_loop()
+        start = loop.time()
+        frame = await sub.next(timeout=0.2)
+        return frame, loop.time() - start
+
+    frame, waited = asyncio.run(run())
+    assert frame is None and 0.15 < waited < 2.0

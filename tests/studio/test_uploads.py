@@ -1,0 +1,71 @@
+"""Loading a mesh into a running studio: progress, readable errors, and the swap every page sees."""
+import asyncio
+import time
+
+import httpx
+import pytest
+from studio.conftest import start_server
+from studio.studio_ws import StudioClient
+
+
+@pytest.fixture(scope="module")
+def fresh_studio():
+    proc, url = start_server(nodes=64)
+    yield url
+    proc.terminate()
+    proc.wait(10)
+
+
+def follow(url, job, timeout=180):
+    stages = []
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        s = httpx.get(f"{url}/api/jobs/{job}").json()
+        stages.append((s["stage"], s["fraction"]))
+        if s["done"]:
+            return s, stages
+        time.sleep(0.05)
+    raise TimeoutError(stages[-5:])
+
+
+@pytest.mark.parametrize("name, content, expected", [
+    ("points.obj", b"v 0 0 0\nv 1 0 0\nv 0 1 0\n", "no triangles"),
+    ("cut.ply", b"ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\nend_header\n0\n", None),
+    ("notes.txt", b"hello", "unsupported mesh format"),
+])
+def test_a_bad_file_gets_a_readable_error_and_the_mesh_stays(fresh_studio, name, content, expected):
+    before = httpx.get(fresh_studio + "/api/state").json()["mesh"]["id"]
+    r = httpx.post(f"{fresh_studio}/api/mesh?name={name}", content=content)
+    assert r.status_code == 202
+    status, _ = follow(fresh_studio, r.json()["job"])
+    assert status["stage"] == "failed" and status["mesh"] is None
+    message = status["error"]
+    assert message.startswith(name) and "\n" not in message and "Traceback" not in message
+    if expected is not None:
+        assert expected in message
+    assert "/tmp" not in message  # the server's temporary folder is not the user's business
+    assert httpx.get(fresh_studio + "/api/state").json()["mesh"]["id"] == before
+
+
+def test_empty_upload_is_refused(fresh_studio):
+    r = httpx.post(f"{fresh_studio}/api/mesh?name=empty.stl", content=b"")
+    assert r.status_code == 400 and "empty" in r.json()["error"]
+
+
+def test_a_good_mesh_replaces_the_scene_for_every_client(fresh_studio, data_dir):
+    data = (data_dir / "meshes" / "teapot.obj").read_bytes()
+
+    async def go():
+        async with StudioClient(fresh_studio) as c:
+            before = c.state["mesh"]["id"]
+            r = httpx.post(f"{fresh_studio}/api/mesh?name=teapot.obj", content=data, timeout=60)
+            status, stages = await asyncio.to_thread(follow, fresh_studio, r.json()["job"])
+            await c.wait(lambda c: c.state["mesh"]["id"] != before and c.transforms[1] == c.state["mesh"]["id"], 60)
+            return before, status, stages, c.state, c.transforms
+
+    before, status, stages, state, transforms = asyncio.run(go())
+    assert status["error"] == "" and status["mesh"] == state["mesh"]["id"] == before + 1
+    assert state["mesh"]["name"] == "teapot.obj" and 50 <= state["mesh"]["nodes"] <= 80
+    fractions = [f for _, f in stages]
+    assert fractions == sorted(fractions) and fractions[-1] == 1.0
+    assert transforms[4].shape[0] == state["mesh"]["nodes"]
