@@ -2,11 +2,12 @@
 
     python examples/animate_bvh.py [MESH] [BVH] [OUT.glb]
 
-Defaults: Spot the cow and the CMU walk bundled with kinetre, 30 frames, written to spot_walk.glb.
+Defaults: Spot the cow and the CMU walk bundled with kinetre, 30 frames, written to spot_walk.glb in the temp folder.
 """
 from __future__ import annotations
 
 import sys
+import tempfile
 from pathlib import Path
 
 import numpy as np
@@ -20,7 +21,7 @@ from kinetre.motion.source import resample
 DATA = Path(kinetre.__file__).resolve().parent / "data"
 mesh_path = sys.argv[1] if len(sys.argv) > 1 else DATA / "spot.obj"
 bvh_path = sys.argv[2] if len(sys.argv) > 2 else DATA / "cmu_12_01_walk.bvh"
-out_path = sys.argv[3] if len(sys.argv) > 3 else "spot_walk.glb"
+out_path = sys.argv[3] if len(sys.argv) > 3 else Path(tempfile.gettempdir()) / "spot_walk.glb"
 
 mesh = kinetre.load_mesh(mesh_path)
 take = resample(load_bvh(bvh_path), 30.0).slice(0, 30)        # Kinect-20 joints, metres, +Y up, 30 fps

@@ -180,3 +180,54 @@ def test_studio_and_scan_are_registered():
         with pytest.raises(SystemExit) as e:
             main([cmd, "--help"])
         assert e.value.code == 0
+
+
+ANIMAL = """HIERARCHY
+ROOT Body
+{
+  OFFSET 0 60 0
+  CHANNELS 6 Xposition Yposition Zposition Zrotation Xrotation Yrotation
+  JOINT Neck
+  { OFFSET 0 10 40
+    CHANNELS 3 Zrotation Xrotation Yrotation
+    End Site
+    { OFFSET 0 20 20 } }
+  JOINT Tail
+  { OFFSET 0 5 -40
+    CHANNELS 3 Zrotation Xrotation Yrotation
+    End Site
+    { OFFSET 0 -10 -30 } }
+  JOINT FrontLeg
+  { OFFSET 15 -5 30
+    CHANNELS 3 Zrotation Xrotation Yrotation
+    End Site
+    { OFFSET 0 -55 0 } }
+  JOINT BackLeg
+  { OFFSET 15 -5 -30
+    CHANNELS 3 Zrotation Xrotation Yrotation
+    End Site
+    { OFFSET 0 -55 0 } }
+}
+MOTION
+Frames: 4
+Frame Time: 0.0333333
+0 60 0 0 0 0 0 0 0 0 0 0 0 0 0 0 0 0
+0 60 2 0 0 0 10 0 0 0 0 0 0 20 0 0 -20 0
+0 60 4 0 0 0 20 0 0 0 0 0 0 40 0 0 -40 0
+0 60 6 0 0 0 10 0 0 0 0 0 0 20 0 0 -20 0
+"""
+
+
+def test_an_animal_bvh_drives_a_mesh_by_its_own_bones(capsys, tmp_path, data_dir):
+    bvh = tmp_path / "animal.bvh"
+    bvh.write_text(ANIMAL)
+    out_path = tmp_path / "cow.kinetre.jsonl"
+    code, out, err = run(capsys, "animate", data_dir / "meshes" / "spot.obj", "--motion", bvh, "--nodes", 48,
+                         "-o", out_path)
+    assert code == 0, err
+    assert "bvh:animal, 9 joints, 4 frames" in out
+    take = read_stream(out_path)
+    assert take.model.name == "bvh:animal" and "FrontLeg_End" in take.model.joints
+    # the legs swing: the front paw moves between frames 0 and 2
+    paw = take.positions[:, take.model.joints.index("FrontLeg_End")]
+    assert np.linalg.norm(paw[2] - paw[0]) > 0.05

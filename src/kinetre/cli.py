@@ -66,8 +66,8 @@ def _bar(total: int, desc: str, quiet: bool):
 
 def _load_motion(path: str, scale: float | None, as_kinect: bool = True):
     from .motion.source import load_take
-    if scale is not None and not path.lower().endswith(".bvh"):
-        raise UsageError("--scale applies to BVH files only (their unit is unknown)")
+    if not path.lower().endswith(".bvh") and (scale is not None or not as_kinect):
+        raise UsageError("--scale and --own-skeleton apply to BVH files only")
     if path.lower().endswith(".bvh"):
         return load_take(path, scale=scale, as_kinect=as_kinect)
     return load_take(path)
@@ -96,8 +96,10 @@ def cmd_animate(args, stats: dict | None = None) -> int:
         stats[f"{stage}_s"] = now - clock
         clock = now
 
+    if args.motion.lower().endswith(VIDEO_EXTS):
+        _quiet_mediapipe()
+    take = _load_motion(args.motion, args.scale, as_kinect=not args.own_skeleton)  # small: fail fast
     mesh = kinetre.load_mesh(args.mesh)
-    take = _load_motion(args.motion, args.scale)
     take = take.slice(frames.start or 0, frames.stop)
     fps = args.fps if args.fps is not None else min(take.fps, 30.0)
     take = resample(take, fps)
@@ -379,6 +381,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--fit", action="store_true", help="resize the mesh to the skeleton instead of the motion to the mesh")
     p.add_argument("--yaw", type=float, default=None, help="degrees about +Y the skeleton faces (default: the mesh front, +Z)")
     p.add_argument("--scale", type=float, default=None, help="BVH: metres per file unit (default: guessed)")
+    p.add_argument("--own-skeleton", action="store_true",
+                   help="BVH: drive the mesh by the file's own bones, not the Kinect-20 map (unmapped files always do)")
     p.add_argument("--fps", type=float, default=None, help="output frame rate (default: the take's, at most 30)")
     p.add_argument("--frames", default=None, metavar="START:END", help="use only these frames of the take")
     p.add_argument("--max-frames", type=int, default=None, help="stop after this many output frames")

@@ -9,7 +9,7 @@ from export.takes import bend_poses, reference_skin, synthetic_graph, validate_g
 from export.gltf_player import GltfPlayer
 from kinetre.deform.pose import GraphPose
 from kinetre.errors import ExportError
-from kinetre.export.gltf import polar_rotations, skin_weights, write_gltf
+from kinetre.export.gltf import polar_error_bound, polar_rotations, skin_weights, stretch_factors, write_gltf
 from kinetre.mesh.mesh import Mesh
 from PIL import Image
 
@@ -26,11 +26,11 @@ def fidelity(path, mesh, graph, poses, fps, skin=reference_skin):
     return np.array(errors)
 
 
-@pytest.mark.parametrize("suffix", [".glb", ".gltf"])
-def test_capsule_take_is_valid_and_faithful(tmp_path, capsule_take, suffix):
+@pytest.mark.parametrize("suffix,stretch", [(".glb", False), (".gltf", False), (".glb", True)])
+def test_capsule_take_is_valid_and_faithful(tmp_path, capsule_take, suffix, stretch):
     mesh, graph, poses, fps = capsule_take
     out = tmp_path / f"capsule{suffix}"
-    write_gltf(out, mesh, graph, poses, fps, name="bend")
+    write_gltf(out, mesh, graph, poses, fps, name="bend", stretch=stretch)
 
     report = validate_gltf(out)
     assert report["issues"]["numErrors"] == 0, report["issues"]["messages"]
@@ -38,10 +38,53 @@ def test_capsule_take_is_valid_and_faithful(tmp_path, capsule_take, suffix):
     assert report["info"]["totalVertexCount"] == len(mesh.vertices)
 
     err = fidelity(out, mesh, graph, poses, fps)
-    print(f"\nglTF fidelity ({suffix}): median {np.median(err):.5%}, max {err.max():.5%} of the bbox diagonal")
-    assert err.max() < 0.01
+    print(f"\nglTF fidelity ({suffix}, stretch={stretch}): median {np.median(err):.5%}, max {err.max():.5%} "
+          "of the bbox diagonal")
+    assert err.max() < (1e-5 if stretch else 0.01)     # stretch nodes: exact up to float32
     # the bend is big (60 degrees) while the error is only the non-rotation part of R_j
     assert np.linalg.norm(reference_skin(mesh, graph, poses[6]) - mesh.vertices, axis=1).max() > 0.2 * mesh.diagonal
+
+
+def test_stretch_is_chosen_when_the_polar_rotation_would_cost_more_than_the_tolerance(tmp_path, capsule_take):
+    mesh, graph, poses, fps = capsule_take
+    rigid = bend_poses(graph, 4, np.random.default_rng(1), affine=0.0)
+    assert polar_error_bound(mesh, graph, np.stack([p.rotations for p in rigid])) < 1e-9
+    bound = polar_error_bound(mesh, graph, np.stack([p.rotations for p in poses]))
+    # the bound holds: the polar-only file's true error is below it
+    write_gltf(tmp_path / "polar.glb", mesh, graph, poses, fps, stretch=False)
+    err = fidelity(tmp_path / "polar.glb", mesh, graph, poses, fps)
+    assert 0 < err.max() * mesh.diagonal <= bound
+    for tol, nodes in ((bound / mesh.diagonal * 1.01, graph.node_count + 2), (bound / mesh.diagonal * 0.99,
+                                                                          2 * graph.node_count + 2)):
+        write_gltf(tmp_path / "auto.glb", mesh, graph, poses, fps, tolerance=tol)
+        assert len(GltfPlayer(tmp_path / "auto.glb").doc.nodes) == nodes
+
+
+def test_stretch_factors_are_continuous_and_exact():
+    from scipy.spatial.transform import Rotation
+    rng = np.random.default_rng(3)
+    t = np.linspace(0.2, 1, 30)[:, None]     # (at t = 0, R = I: any U = W^T is an SVD)
+    rot = Rotation.from_rotvec(t[:, :, None] * rng.normal(size=(1, 5, 3))).as_matrix()           # (30, 5, 3, 3)
+    sym = rng.normal(size=(5, 3, 3)) * 0.3
+    r = rot @ (np.eye(3) + t[:, :, None, None] * (sym + sym.transpose(0, 2, 1)))
+    u, s, w = stretch_factors(r)
+    np.testing.assert_allclose(np.einsum("fnij,fnj,fnjk->fnik", u, s, w), r, atol=1e-12)
+    np.testing.assert_allclose(np.linalg.det(u), 1.0)
+    np.testing.assert_allclose(np.linalg.det(w), 1.0)
+    # consecutive keys stay close (no relabelled axes between frames)
+    assert np.abs(np.diff(u, axis=0)).max() < 0.5 and np.abs(np.diff(w, axis=0)).max() < 0.5
+
+
+def test_stretch_interpolates_smoothly_between_keys(tmp_path, capsule_take):
+    """Between two keys a player slerps U and W and lerps s: the result stays near the blended pose."""
+    mesh, graph, poses, fps = capsule_take
+    write_gltf(tmp_path / "mid.glb", mesh, graph, poses, fps, stretch=True)
+    player = GltfPlayer(tmp_path / "mid.glb")
+    for k in range(len(poses) - 1):
+        a, b = poses[k], poses[k + 1]
+        blend = GraphPose(0.5 * (a.rotations + b.rotations), 0.5 * (a.translations + b.translations))
+        err = np.linalg.norm(player.skin((k + 0.5) / fps) - reference_skin(mesh, graph, blend), axis=1)
+        assert err.max() < 0.01 * mesh.diagonal
 
 
 def test_rigid_take_is_exact(tmp_path, capsule_take):
@@ -49,13 +92,14 @@ def test_rigid_take_is_exact(tmp_path, capsule_take):
     mesh, graph, _, fps = capsule_take
     poses = bend_poses(graph, 5, np.random.default_rng(1), affine=0.0)
     write_gltf(tmp_path / "rigid.glb", mesh, graph, poses, fps)
+    assert len(GltfPlayer(tmp_path / "rigid.glb").doc.nodes) == graph.node_count + 2     # no stretch needed
     err = fidelity(tmp_path / "rigid.glb", mesh, graph, poses, fps)
     assert err.max() < 1e-5
 
 
 def test_document_structure(tmp_path, capsule_take):
     mesh, graph, poses, fps = capsule_take
-    write_gltf(tmp_path / "take.glb", mesh, graph, poses, fps, name="walk")
+    write_gltf(tmp_path / "take.glb", mesh, graph, poses, fps, name="walk", stretch=False)
     player = GltfPlayer(tmp_path / "take.glb")
     doc = player.doc
     n = graph.node_count

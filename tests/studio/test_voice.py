@@ -92,6 +92,18 @@ def test_44k1_input_is_resampled_and_recognised(recogniser, speech):
     assert out.dtype == np.int16 and abs(out.size - pcm.size / 2) <= 1
 
 
+def test_stereo_float_wav_and_int16_passthrough(recogniser, speech):
+    items, wavs = speech["kal"]
+    wav = wavs[[t for t, _, _ in items].index("upper body")]
+    rate, pcm = wavfile.read(io.BytesIO(wav))
+    assert rate == 16000
+    assert np.array_equal(pcm16k(pcm), pcm)  # 16 kHz int16 goes through bit for bit
+    stereo = np.stack([pcm, pcm], axis=1).astype(np.float32) / 32768
+    buffer = io.BytesIO()
+    wavfile.write(buffer, 22050, resample_poly(stereo, 441, 320, axis=0).astype(np.float32))
+    assert recogniser.recognise(buffer.getvalue()) == Command(None, "upper body", "upper body")
+
+
 def test_convenience_function_matches_recogniser(recogniser, speech):
     items, wavs = speech["kal"]
     wav = wavs[[t for t, _, _ in items].index("possess the arms")]

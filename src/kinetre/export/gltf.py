@@ -9,6 +9,12 @@ trimesh's glTF exporter; only the skin and the animation are added here, with py
   (Eq. 2, with R_j) only by the small non-rotation part of R_j (SPEC §8: < 0.1 % of the bbox diagonal);
 * JOINTS_0 / WEIGHTS_0 are the graph's 4 nodes and weights per vertex (SPEC §1.4);
 * one animation, one LINEAR sampler pair (translation, rotation) per joint, keyed at every frame.
+
+When a take stretches the mesh (a badly fitting skeleton pulls nodes apart), dropping the non-rotation part
+of R_j can cost more than the SPEC's 0.1 %. Then each joint gets a parent node that carries it exactly:
+R_j = U diag(s) W (SVD), parent translation g_j + t_j, rotation U and scale s, joint rotation W, so the
+joint's world matrix is T(g_j + t_j) R_j and the player's skinning equals Eq. 2 at every key
+(`stretch=None` picks this only when needed, from `polar_error_bound`).
 """
 from __future__ import annotations
 
@@ -28,7 +34,7 @@ _ALIGN = 4  # glTF: every bufferView starts on a 4-byte boundary
 
 
 def write_gltf(path, mesh: Mesh, graph: DeformationGraph, poses: list[GraphPose], fps: float,
-               name: str = "take") -> None:
+               name: str = "take", *, stretch: bool | None = None, tolerance: float = 1e-3) -> None:
     """Write `mesh`, rigged by `graph` and animated by `poses`, as .glb (binary) or .gltf (one JSON file).
 
     Parameters
@@ -46,6 +52,14 @@ def write_gltf(path, mesh: Mesh, graph: DeformationGraph, poses: list[GraphPose]
         Frames per second of the take: frame k is keyed at time k / fps.
     name : str
         Name of the animation (and prefix of the mesh and joint names).
+    stretch : bool or None
+        False: SPEC §8's joints (translation + polar rotation), which drop the non-rotation part of each
+        R_j. True: each joint gets a parent node carrying R_j's stretch (R_j = U diag(s) W: parent
+        rotation U and scale s, joint rotation W), so a player reproduces Eq. 2 exactly at every key.
+        None (default): True only if dropping the stretch could move a vertex by more than `tolerance`
+        times the bounding-box diagonal (`polar_error_bound`).
+    tolerance : float
+        See `stretch`.
 
     Raises
     ------
@@ -65,7 +79,9 @@ def write_gltf(path, mesh: Mesh, graph: DeformationGraph, poses: list[GraphPose]
         doc.meshes[0].primitives[0].attributes.COLOR_0 = _append(
             doc, blob, np.asarray(mesh.colors, dtype=np.uint8), gl.VEC4, gl.UNSIGNED_BYTE, normalized=True,
             target=gl.ARRAY_BUFFER)
-    _add_skin_and_animation(doc, blob, graph, rotations, translations, fps, name)
+    if stretch is None:
+        stretch = polar_error_bound(mesh, graph, rotations) > tolerance * mesh.diagonal
+    _add_skin_and_animation(doc, blob, graph, rotations, translations, fps, name, bool(stretch))
     doc.buffers = [gl.Buffer(byteLength=len(blob))]
     doc.asset = gl.Asset(version="2.0", generator="Kinetre (embedded deformation export, trimesh + pygltflib)")
 
@@ -219,7 +235,82 @@ def skin_weights(graph: DeformationGraph) -> tuple[np.ndarray, np.ndarray]:
     return j.astype(dtype), w32
 
 
-def _add_skin_and_animation(doc, blob, graph, rotations, translations, fps, name):
+def polar_error_bound(mesh: Mesh, graph: DeformationGraph, rotations: np.ndarray) -> float:
+    """Upper bound on how far any vertex moves when each R_j is replaced by its polar rotation Q_j.
+
+    |sum_j w_j (R_j - Q_j)(v - g_j)| <= max_j ||R_j - Q_j||_2 * r_j, with r_j the largest distance from
+    node j to a vertex it influences (the weights are convex).
+
+    Parameters
+    ----------
+    rotations : (F, N, 3, 3) float64
+
+    Returns
+    -------
+    float, in the mesh's units.
+    """
+    n = graph.node_count
+    reach = np.zeros(n)
+    dist = np.linalg.norm(mesh.vertices[:, None, :] - graph.nodes[graph.vertex_nodes], axis=2)   # (V, 4)
+    dist[graph.vertex_weights <= 0] = 0.0
+    np.maximum.at(reach, graph.vertex_nodes.ravel(), dist.ravel())
+    gap = np.linalg.norm(rotations - polar_rotations(rotations), ord=2, axis=(2, 3))            # (F, N)
+    return float((gap * reach[None]).max())
+
+
+def stretch_factors(rotations: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """R = U diag(s) W per node and frame, with U, W proper rotations chosen continuous in time.
+
+    Parameters
+    ----------
+    rotations : (F, N, 3, 3) float64
+
+    Returns
+    -------
+    u, w : (F, N, 3, 3) rotations; s : (F, N, 3) scales (the singular values, the last one negative
+    where det R < 0).
+
+    Notes
+    -----
+    The SVD is unique only up to a signed permutation M of the singular directions (U M, M^T diag M,
+    M^T W): of the 24 proper ones, each frame takes the M nearest to the previous frame's factors, so a
+    player interpolating between keys does not swing through a relabelling of the axes.
+    """
+    u, s, w = np.linalg.svd(rotations)
+    # make U and W proper; a reflection in R (det < 0) goes into the last scale
+    du, dw = np.sign(np.linalg.det(u)), np.sign(np.linalg.det(w))
+    du[du == 0], dw[dw == 0] = 1.0, 1.0
+    u[..., :, 2] *= du[..., None]
+    w[..., 2, :] *= dw[..., None]
+    s[..., 2] *= du * dw
+    cube = _proper_signed_permutations()                                   # (24, 3, 3)
+    for k in range(1, rotations.shape[0]):
+        cu = np.einsum("nij,mjk->nmik", u[k], cube)                           # U M
+        cw = np.einsum("mji,njk->nmik", cube, w[k])                           # M^T W
+        score = np.einsum("nij,nmij->nm", u[k - 1], cu) + np.einsum("nij,nmij->nm", w[k - 1], cw)
+        best = np.argmax(score, axis=1)
+        m = cube[best]                                                        # (N, 3, 3)
+        u[k] = np.einsum("nij,njk->nik", u[k], m)
+        w[k] = np.einsum("nji,njk->nik", m, w[k])
+        s[k] = np.einsum("nji,nj->ni", m * m, s[k])                         # diag(M^T diag(s) M)
+    return u, s, w
+
+
+def _proper_signed_permutations() -> np.ndarray:
+    """The 24 rotations that map coordinate axes to coordinate axes (signed permutation matrices)."""
+    import itertools
+
+    out = []
+    for perm in itertools.permutations(range(3)):
+        for signs in itertools.product((1.0, -1.0), repeat=3):
+            m = np.zeros((3, 3))
+            m[list(perm), range(3)] = signs
+            if np.linalg.det(m) > 0:
+                out.append(m)
+    return np.array(out)
+
+
+def _add_skin_and_animation(doc, blob, graph, rotations, translations, fps, name, stretch):
     f, n = translations.shape[:2]
     prim = doc.meshes[0].primitives[0]
     joints, weights = skin_weights(graph)
@@ -231,27 +322,44 @@ def _add_skin_and_animation(doc, blob, graph, rotations, translations, fps, name
     g = np.asarray(graph.nodes, dtype=np.float64)
     # node 0: the skinned mesh (a root without transform, as glTF requires for skinned meshes)
     # node 1: the rig root, parent of every joint, so the joints share a common root
-    # nodes 2..N+1: one joint per graph node, at rest translated to g_j
-    doc.nodes = [gl.Node(name=name, mesh=0, skin=0),
-                 gl.Node(name=f"{name}_graph", children=list(range(2, n + 2)))]
-    doc.nodes += [gl.Node(name=f"node_{j}", translation=[float(x) for x in g[j]]) for j in range(n)]
+    # then per graph node j, at rest translated to g_j: the joint "node_j"; with stretch, the joint is
+    # the child of "node_j_stretch" (translation g_j + t_j, rotation U, scale s) and rotates by W
+    step = 2 if stretch else 1
+    top = [2 + step * j for j in range(n)]
+    joint_ids = [t + step - 1 for t in top]
+    doc.nodes = [gl.Node(name=name, mesh=0, skin=0), gl.Node(name=f"{name}_graph", children=top)]
+    for j in range(n):
+        rest = [float(x) for x in g[j]]
+        if stretch:
+            doc.nodes += [gl.Node(name=f"node_{j}_stretch", translation=rest, children=[joint_ids[j]]),
+                          gl.Node(name=f"node_{j}")]
+        else:
+            doc.nodes.append(gl.Node(name=f"node_{j}", translation=rest))
     inverse_bind = np.tile(np.eye(4, dtype=np.float32), (n, 1, 1))
     inverse_bind[:, :3, 3] = -g
     # glTF matrices are column-major: store the transpose of each row-major matrix
     ibm = _append(doc, blob, inverse_bind.transpose(0, 2, 1).reshape(n, 16), gl.MAT4, gl.FLOAT)
-    doc.skins = [gl.Skin(name=f"{name}_skin", joints=list(range(2, n + 2)), skeleton=1, inverseBindMatrices=ibm)]
+    doc.skins = [gl.Skin(name=f"{name}_skin", joints=joint_ids, skeleton=1, inverseBindMatrices=ibm)]
     doc.scenes = [gl.Scene(name=name, nodes=[0, 1])]
 
     times = (np.arange(f, dtype=np.float64) / fps).astype(np.float32)
     time_acc = _append(doc, blob, times, gl.SCALAR, gl.FLOAT, minmax=True)
     position = (g[None] + translations).astype(np.float32)              # (F, N, 3)
-    quats = rotation_quaternions(polar_rotations(rotations))              # (F, N, 4)
+    tracks = []                                                          # (node, path, (F, k) values)
+    if stretch:
+        u, s, w = stretch_factors(rotations)
+        qu, qw = rotation_quaternions(u), rotation_quaternions(w)
+        for j in range(n):
+            tracks += [(top[j], "translation", position[:, j]), (top[j], "rotation", qu[:, j]),
+                       (top[j], "scale", s[:, j].astype(np.float32)), (joint_ids[j], "rotation", qw[:, j])]
+    else:
+        quats = rotation_quaternions(polar_rotations(rotations))          # (F, N, 4)
+        for j in range(n):
+            tracks += [(top[j], "translation", position[:, j]), (top[j], "rotation", quats[:, j])]
     samplers, channels = [], []
-    for j in range(n):
-        t_acc = _append(doc, blob, position[:, j], gl.VEC3, gl.FLOAT)
-        r_acc = _append(doc, blob, quats[:, j], gl.VEC4, gl.FLOAT)
-        for acc, prop in ((t_acc, "translation"), (r_acc, "rotation")):
-            samplers.append(gl.AnimationSampler(input=time_acc, output=acc, interpolation="LINEAR"))
-            channels.append(gl.AnimationChannel(sampler=len(samplers) - 1,
-                                                target=gl.AnimationChannelTarget(node=j + 2, path=prop)))
+    for node, prop, values in tracks:
+        acc = _append(doc, blob, values, gl.VEC4 if prop == "rotation" else gl.VEC3, gl.FLOAT)
+        samplers.append(gl.AnimationSampler(input=time_acc, output=acc, interpolation="LINEAR"))
+        channels.append(gl.AnimationChannel(sampler=len(samplers) - 1,
+                                            target=gl.AnimationChannelTarget(node=node, path=prop)))
     doc.animations = [gl.Animation(name=name, samplers=samplers, channels=channels)]

@@ -31,58 +31,57 @@ def _insert(best_d, best_i, d, i):
 
 
 @njit(cache=True)
-def _weights(vertices, vnormals, nodes, nnormals, cell, table_bits, out_idx, out_w):
+def _weights(vertices, vnormals, nodes, nnormals, cell, dims, out_idx, out_w):
     n = nodes.shape[0]
-    size = 1 << table_bits
-    mask = size - 1
-    head = np.full(size, -1, np.int64)
+    nx_, ny_, nz_ = dims[0], dims[1], dims[2]
+    # dense grid of node lists (nodes are few: the grid is small)
+    head = np.full(nx_ * ny_ * nz_, -1, np.int64)
     nxt = np.full(n, -1, np.int64)
     inv = 1.0 / cell
     for a in range(n):
-        h = ((int(np.floor(nodes[a, 0] * inv)) * 73856093) ^ (int(np.floor(nodes[a, 1] * inv)) * 19349663)
-             ^ (int(np.floor(nodes[a, 2] * inv)) * 83492791)) & mask
-        nxt[a] = head[h]
-        head[h] = a
+        i = min(max(int(nodes[a, 0] * inv), 0), nx_ - 1)
+        j = min(max(int(nodes[a, 1] * inv), 0), ny_ - 1)
+        k = min(max(int(nodes[a, 2] * inv), 0), nz_ - 1)
+        c = (i * ny_ + j) * nz_ + k
+        nxt[a] = head[c]
+        head[c] = a
     k1 = K + 1
     best_d = np.empty(k1)
     best_i = np.empty(k1, np.int64)
     for v in range(vertices.shape[0]):
         px, py, pz = vertices[v, 0], vertices[v, 1], vertices[v, 2]
-        nx, ny, nz = vnormals[v, 0], vnormals[v, 1], vnormals[v, 2]
+        vx, vy, vz = vnormals[v, 0], vnormals[v, 1], vnormals[v, 2]
         best_d[:] = np.inf
         best_i[:] = -1
-        ci = int(np.floor(px * inv))
-        cj = int(np.floor(py * inv))
-        ck = int(np.floor(pz * inv))
-        for ring in range(1, 3):
-            for di in range(-ring, ring + 1):
-                for dj in range(-ring, ring + 1):
-                    for dk in range(-ring, ring + 1):
-                        if max(abs(di), abs(dj), abs(dk)) != ring and ring > 1:
-                            continue  # inner cells were visited in the previous ring
-                        h = (((ci + di) * 73856093) ^ ((cj + dj) * 19349663) ^ ((ck + dk) * 83492791)) & mask
-                        a = head[h]
+        ci = min(max(int(px * inv), 0), nx_ - 1)
+        cj = min(max(int(py * inv), 0), ny_ - 1)
+        ck = min(max(int(pz * inv), 0), nz_ - 1)
+        for ring in range(0, 4):
+            for i in range(max(ci - ring, 0), min(ci + ring, nx_ - 1) + 1):
+                for j in range(max(cj - ring, 0), min(cj + ring, ny_ - 1) + 1):
+                    for k in range(max(ck - ring, 0), min(ck + ring, nz_ - 1) + 1):
+                        if max(abs(i - ci), abs(j - cj), abs(k - ck)) != ring:
+                            continue  # inner cells were visited in earlier rings
+                        a = head[(i * ny_ + j) * nz_ + k]
                         while a >= 0:
-                            d = distance_5d(px, py, pz, nx, ny, nz, nodes[a, 0], nodes[a, 1], nodes[a, 2],
-                                            nnormals[a, 0], nnormals[a, 1], nnormals[a, 2])
-                            # hash collisions can list a node twice; keep one entry per node
-                            dup = False
-                            for q in range(k1):
-                                if best_i[q] == a:
-                                    dup = True
-                            if not dup:
+                            dx = px - nodes[a, 0]
+                            dy = py - nodes[a, 1]
+                            dz = pz - nodes[a, 2]
+                            # D >= Euclidean: a node this far cannot enter the best k+1
+                            if dx * dx + dy * dy + dz * dz < best_d[K] * best_d[K]:
+                                d = distance_5d(px, py, pz, vx, vy, vz, nodes[a, 0], nodes[a, 1],
+                                                nodes[a, 2], nnormals[a, 0], nnormals[a, 1], nnormals[a, 2])
                                 _insert(best_d, best_i, d, a)
                             a = nxt[a]
-            # Everything within Euclidean ring*cell has been seen, and D >= Euclidean: stop once the
-            # (k+1)-th D is inside that ball.
+            # every node within Euclidean ring * cell of the vertex has been seen
             if best_d[K] <= ring * cell:
                 break
-        if not best_d[K] <= 2 * cell:
+        if not best_d[K] <= 3 * cell:
             # sparse neighbourhood: rank every node by D, then fall back to Euclidean if D runs out
             best_d[:] = np.inf
             best_i[:] = -1
             for a in range(n):
-                d = distance_5d(px, py, pz, nx, ny, nz, nodes[a, 0], nodes[a, 1], nodes[a, 2],
+                d = distance_5d(px, py, pz, vx, vy, vz, nodes[a, 0], nodes[a, 1], nodes[a, 2],
                                 nnormals[a, 0], nnormals[a, 1], nnormals[a, 2])
                 _insert(best_d, best_i, d, a)
             if not np.isfinite(best_d[min(K, n - 1)]):
@@ -136,11 +135,15 @@ def skinning_weights(vertices: np.ndarray, vertex_normals: np.ndarray, nodes: np
     v = len(vertices)
     idx = np.zeros((v, K), dtype=np.int32)
     w = np.zeros((v, K), dtype=np.float64)
-    origin = nodes.min(axis=0)
-    bits = max(12, int(np.ceil(np.log2(8 * len(nodes)))))
+    origin = np.minimum(nodes.min(axis=0), vertices.min(axis=0))
+    extent = np.maximum(nodes.max(axis=0), vertices.max(axis=0)) - origin
+    cell = 2.0 * float(radius)  # most vertices find their k+1 nodes within one ring of cells
+    while np.prod(np.floor(extent / cell) + 1) > 4_000_000:  # keep the dense node grid small
+        cell *= 2.0
+    dims = (np.floor(extent / cell) + 1).astype(np.int64)
     _weights(np.ascontiguousarray(vertices - origin), np.ascontiguousarray(vertex_normals, dtype=np.float64),
              np.ascontiguousarray(nodes - origin), np.ascontiguousarray(node_normals, dtype=np.float64),
-             float(radius), bits, idx, w)
+             cell, dims, idx, w)
     w32 = w.astype(np.float32)
     # float32 rounding: put the residual on the largest weight so rows sum to 1 in float32 too
     w32[np.arange(v), np.argmax(w32, axis=1)] += np.float32(1.0) - w32.sum(axis=1)

@@ -345,7 +345,7 @@ _CANDIDATES = {
     "HipCenter": ["hipcenter", "hips", "hip", "pelvis", "root"],
     "Spine": ["spine", "chest", "spine1", "lowerback", "torso"],
     "ShoulderCenter": ["shouldercenter", "neck", "neck1", "neckbase", "spine3", "chest2", "upperchest", "spine2"],
-    "Head": ["head", "neck1end", "headtopend"],
+    "Head": ["head", "headtopend"],
     "Shoulder": ["shoulder{s}", "{s}arm", "{s}upperarm", "{c}shoulder", "{s}shoulder", "upperarm{c}", "{c}uparm"],
     "Elbow": ["elbow{s}", "{s}forearm", "{s}lowerarm", "{c}elbow", "{s}elbow", "lowerarm{c}", "{c}forearm"],
     "Wrist": ["wrist{s}", "{s}hand", "{c}wrist", "{s}wrist", "hand{c}", "{c}hand"],
