@@ -126,3 +126,25 @@ def test_unconstrained_leg_stays_rigid_only_with_rigidity_term():
     size = m.diagonal
     assert results[1.0] < 0.02 * size, results          # follows the chair rigidly
     assert results[0.0] > 2 * results[1.0], results     # without E_rig it swings free (Fig. 4 f)
+
+
+def test_real_walk_converges_every_frame(data_dir):
+    from kinetre.motion.bvh import load_bvh
+    from synthetic import capsule_body
+    take = load_bvh(data_dir / "bvh" / "cmu_12_01_walk.bvh")
+    frames = [take.frame(i) for i in range(0, 120, 4)]
+    body = capsule_body(frames[0], radius=0.06)
+    g = kinetre.build_graph(body, nodes=128, seed=0)
+    for reuse in (False, True):
+        rig = kinetre.attach(g, frames[0], settings=SolverSettings(reuse_factor=reuse))
+        for f in frames[1:]:
+            pose = rig.solve(f)
+            rep = rig.last_report
+            assert rep.iterations <= 10
+            assert np.all(np.diff(rep.energies) < 0)
+            assert np.all(np.isfinite(pose.translations))
+        # the mesh follows: the joints' constraint residuals are small against the 1.3 m skeleton
+        q, ok = rig.targets(frames[-1])
+        parts = rig.system.residuals(rig._x, q, ok.astype(float))
+        err = np.linalg.norm(parts[4].reshape(-1, 3), axis=1)
+        assert np.median(err) < 0.02 and err.max() < 0.15

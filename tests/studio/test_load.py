@@ -39,6 +39,8 @@ async def paced_client(url, walk, index, stop_at, possess):
             await c.wait(lambda c: c.me() is not None and c.me()["frames"] >= 1, 60)
             await c.send({"type": "fit"})
             await c.send({"type": "possess", "subset": "left leg" if index == 0 else "right leg"})
+            await c.wait(lambda c: c.me()["possessing"] or any(m["type"] == "error" for m in c.messages), 60)
+            assert c.me()["possessing"], [m for m in c.messages if m["type"] == "error"]
         seq = sent
         while time.monotonic() < stop_at:
             if rng.random() < 0.1:

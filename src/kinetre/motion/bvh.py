@@ -24,6 +24,7 @@ from ..skeleton.models import KINECT20, SkeletonModel
 from .source import Take
 
 _AXIS = {"x": 0, "y": 1, "z": 2}
+_CHUNK = 4096  # frames per forward-kinematics batch
 _CHANNELS = {f"{a}{kind}" for a in "xyz" for kind in ("position", "rotation")}
 
 
@@ -471,7 +472,9 @@ def load_bvh(path: str | os.PathLike, scale: float | None = None, as_kinect: boo
         scale, _ = detect_unit(float(np.ptp(rest_positions(clip), axis=0).max()))
     elif not (math.isfinite(scale) and scale > 0):
         raise BadMotionError(f"{path}: scale must be a positive number, got {scale!r}")
-    positions = forward_kinematics(clip) * scale
+    # in chunks of frames: the per-joint world rotations of a long clip would not fit in memory at once
+    positions = np.concatenate([forward_kinematics(clip, slice(i, i + _CHUNK))
+                                for i in range(0, len(clip.motion), _CHUNK)]) * scale
     mapping = kinect_map(clip.names, clip.parents) if as_kinect else None
     if mapping is not None:
         weights, _ = mapping
