@@ -170,7 +170,8 @@ def test_nothing_attaches(capsys, tmp_path, data_dir):
                                       for y in (0.08, 1.68)])
     path = tmp_path / "dumbbell.ply"
     balls.export(path)
-    msg = bad(capsys, "animate", path, "--motion", data_dir / "bvh" / "mocapbank_test.bvh", "--subset", "ElbowLeft,KneeRight",
+    msg = bad(capsys, "animate", path, "--motion", data_dir / "bvh" / "mocapbank_test.bvh",
+              "--subset", "ElbowLeft,KneeRight",
               "--nodes", 32, "-o", tmp_path / "x.glb")
     assert "cannot possess" in msg
 

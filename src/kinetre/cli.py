@@ -149,7 +149,8 @@ def cmd_animate(args, stats: dict | None = None) -> int:
                 write_video(args.output, mesh_out, graph_out, poses, take.fps, skeletons=skeletons,
                             on_frame=lambda i: bar.update(1))
         energy = np.array([p.energy for p in poses], dtype=float)
-        say(f"solved {len(poses)} frames, median energy {np.nanmedian(energy) if np.isfinite(energy).any() else float('nan'):.3g}")
+        solved = energy[np.isfinite(energy)]  # held frames (nothing tracked) have no energy
+        say(f"solved {len(poses)} frames, median energy {np.median(solved) if solved.size else float('nan'):.3g}")
     lap("write")
     stats.update(vertices=len(mesh.vertices), nodes=graph.node_count, frames=len(take),
                  total_s=time.perf_counter() - t0)
@@ -378,8 +379,10 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--subset", action="append", metavar="JOINTS",
                    help='joints that drive, e.g. "right arm" or "HipCenter,right arm" (repeatable)')
     p.add_argument("--bind-frame", type=int, default=0, help="frame used as the bind pose (default 0)")
-    p.add_argument("--fit", action="store_true", help="resize the mesh to the skeleton instead of the motion to the mesh")
-    p.add_argument("--yaw", type=float, default=None, help="degrees about +Y the skeleton faces (default: the mesh front, +Z)")
+    p.add_argument("--fit", action="store_true",
+                   help="resize the mesh to the skeleton instead of the motion to the mesh")
+    p.add_argument("--yaw", type=float, default=None,
+                   help="degrees about +Y the skeleton faces (default: the mesh front, +Z)")
     p.add_argument("--scale", type=float, default=None, help="BVH: metres per file unit (default: guessed)")
     p.add_argument("--own-skeleton", action="store_true",
                    help="BVH: drive the mesh by the file's own bones, not the Kinect-20 map (unmapped files always do)")

@@ -302,3 +302,11 @@ def test_bvh_export_reads_back_to_the_same_positions(takes, tmp_path):
     assert back.fps == pytest.approx(take.fps, rel=1e-4)
     err = np.abs(back.positions - take.positions).max()
     assert err < 1e-5, f"round trip moved a joint by {err} m"
+
+
+def test_long_clips_are_solved_in_chunks_with_the_same_result(data_dir, monkeypatch):
+    import kinetre.motion.bvh as bvh
+    whole = load_bvh(data_dir / "bvh" / "cmu_01_01_hops.bvh")
+    monkeypatch.setattr(bvh, "_CHUNK", 100)  # 2752 frames -> 28 chunks, the last one partial
+    chunked = load_bvh(data_dir / "bvh" / "cmu_01_01_hops.bvh")
+    assert np.array_equal(whole.positions, chunked.positions)

@@ -111,7 +111,8 @@ def test_mapping_rows():
     pos, tracked = kinect_from_mediapipe(world, np.ones(33))
     np.testing.assert_allclose(pos[J("HipCenter")], 0.5 * (world[23] + world[24]))
     np.testing.assert_allclose(pos[J("HandRight")], 0.5 * (world[18] + world[20]))
-    np.testing.assert_allclose(pos[J("Spine")], pos[J("HipCenter")] + 0.25 * (pos[J("ShoulderCenter")] - pos[J("HipCenter")]))
+    hc, sc = pos[J("HipCenter")], pos[J("ShoulderCenter")]
+    np.testing.assert_allclose(pos[J("Spine")], hc + 0.25 * (sc - hc))
     vis = np.ones(33)
     vis[19] = 0.3  # left index finger hidden: the left hand is not tracked, the wrist is
     _, tracked = kinect_from_mediapipe(world, vis)
