@@ -121,6 +121,16 @@ def tracked_take(frames=30, seed=0):
     return take
 
 
+def placed(frames, mesh):
+    """The frames scaled to the mesh's height, centred on it in x/z and standing on its lowest point."""
+    lo, hi = mesh.bounds
+    p = frames[0].positions[frames[0].tracked]
+    scale = (hi[1] - lo[1]) / np.ptp(p[:, 1])
+    foot = np.array([0.5 * (p[:, 0].min() + p[:, 0].max()), p[:, 1].min(), 0.5 * (p[:, 2].min() + p[:, 2].max())])
+    target = np.array([0.5 * (lo[0] + hi[0]), lo[1], 0.5 * (lo[2] + hi[2])])
+    return [f.transformed(scale=scale, translation=target - scale * foot) for f in frames]
+
+
 def validate_gltf(path) -> dict:
     """Run the Khronos glTF validator (tests/export/node, installed by `make setup`) on `path`."""
     if not (NODE_DIR / "node_modules" / "gltf-validator").is_dir():

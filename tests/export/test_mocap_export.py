@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 from export.gltf_player import GltfPlayer
-from export.takes import DATA, validate_gltf
+from export.takes import DATA, placed, validate_gltf
 
 import kinetre
 from kinetre.export.bvh import rotation_residuals, write_bvh
@@ -38,16 +38,6 @@ def test_bvh_round_trip_through_our_parser(tmp_path, bvh):
 def spot():
     mesh = kinetre.load_mesh(DATA / "meshes" / "spot.obj")
     return mesh, kinetre.build_graph(mesh, nodes=128, seed=0)
-
-
-def placed(frames, mesh):
-    """The frames scaled to the mesh's height, centred on it in x/z and standing on its lowest point."""
-    lo, hi = mesh.bounds
-    p = frames[0].positions[frames[0].tracked]
-    scale = (hi[1] - lo[1]) / np.ptp(p[:, 1])
-    foot = np.array([0.5 * (p[:, 0].min() + p[:, 0].max()), p[:, 1].min(), 0.5 * (p[:, 2].min() + p[:, 2].max())])
-    target = np.array([0.5 * (lo[0] + hi[0]), lo[1], 0.5 * (lo[2] + hi[2])])
-    return [f.transformed(scale=scale, translation=target - scale * foot) for f in frames]
 
 
 @pytest.mark.parametrize("bvh", BVHS, ids=lambda p: p.stem)

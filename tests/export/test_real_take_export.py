@@ -1,5 +1,5 @@
-"""The three exports of one real take: spot.obj (UV-mapped) possessed by a Kinect-20 skeleton, solved with
-Kinetre's own graph, rig and solver, then written as GLB, BVH and MP4 and checked from the files."""
+"""The three exports of one real take: spot.obj (UV-mapped) possessed by the CMU walk (Kinect-20), solved
+with Kinetre's own graph, rig and solver, then written as GLB, BVH and MP4 and checked from the files."""
 from __future__ import annotations
 
 import dataclasses
@@ -10,27 +10,25 @@ import numpy as np
 import pytest
 from export.bvh_reader import read_bvh_positions
 from export.gltf_player import GltfPlayer
-from export.takes import TPOSE, rigid_take, validate_gltf
+from export.takes import placed, validate_gltf
 from PIL import Image
 
 import kinetre
 from kinetre.export.bvh import write_bvh
 from kinetre.export.gltf import write_gltf
 from kinetre.export.video import write_video
+from kinetre.motion.bvh import load_bvh
 
-FPS = 30.0
+FPS = 24.0
 
 
 @pytest.fixture(scope="module")
 def spot_take(data_dir):
-    """(mesh, graph, poses, skeleton frames): 24 frames of a moving skeleton fitted inside the cow."""
+    """(mesh, graph, poses, skeleton frames): 24 frames of the CMU walk placed on the cow."""
     mesh = kinetre.load_mesh(data_dir / "meshes" / "spot.obj")
     graph = kinetre.build_graph(mesh, nodes=128, seed=0)
-    rest = np.array([TPOSE[j] for j in kinetre.KINECT20.joints])
-    lo, hi = mesh.bounds
-    scale = (hi[1] - lo[1]) / np.ptp(rest[:, 1])
-    shift = 0.5 * (lo + hi) - scale * 0.5 * (rest.min(axis=0) + rest.max(axis=0))
-    frames = [f.transformed(scale=scale, translation=shift) for f in rigid_take(24, seed=2)]
+    take = load_bvh(data_dir / "bvh" / "cmu_12_01_walk.bvh")
+    frames = placed([take.frame(i) for i in range(0, 24 * 5, 5)], mesh)       # 24 fps from 120 fps
     rig = kinetre.attach(graph, frames[0])
     assert rig.constraint_count > 0
     poses = [rig.solve(f) for f in frames]
@@ -80,7 +78,7 @@ def test_spot_video(tmp_path, spot_take):
          "stream=codec_name,width,height,r_frame_rate,nb_read_frames", "-of", "json", str(out)],
         capture_output=True, text=True, check=True).stdout)["streams"][0]
     assert (info["codec_name"], info["width"], info["height"]) == ("h264", 640, 480)
-    assert info["r_frame_rate"] == "30/1" and int(info["nb_read_frames"]) == len(poses)
+    assert info["r_frame_rate"] == "24/1" and int(info["nb_read_frames"]) == len(poses)
     raw = subprocess.run(["ffmpeg", "-v", "error", "-i", str(out), "-f", "rawvideo", "-pix_fmt", "rgb24", "-"],
                          capture_output=True, check=True).stdout
     video = np.frombuffer(raw, np.uint8).reshape(-1, 480, 640, 3).astype(np.int16)

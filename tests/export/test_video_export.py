@@ -30,14 +30,12 @@ def decode(path, size=(640, 480)) -> np.ndarray:
 def spine_skeletons(graph, poses):
     """A 2-joint skeleton along the capsule's axis that follows the take (for the overlay)."""
     model = SkeletonModel("stick", ("base", "tip"), (-1, 0))
-    lo, hi = graph.nodes[np.argmin(graph.nodes[:, 2])], graph.nodes[np.argmax(graph.nodes[:, 2])]
+    ends = (np.argmin(graph.nodes[:, 2]), np.argmax(graph.nodes[:, 2]))
     out = []
     for pose in poses:
         m = pose.node_matrices(graph.nodes)
-        ends = [m[j, :3, :3] @ graph.nodes[j] + m[j, :3, 3] for j in (np.argmin(graph.nodes[:, 2]),
-                                                                     np.argmax(graph.nodes[:, 2]))]
-        out.append([Skeleton(model, np.array(ends), np.ones(2, bool))])
-    assert np.linalg.norm(hi - lo) > 0
+        moved = [m[j, :3, :3] @ graph.nodes[j] + m[j, :3, 3] for j in ends]
+        out.append([Skeleton(model, np.array(moved), np.ones(2, bool))])
     return out
 
 

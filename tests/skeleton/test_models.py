@@ -55,3 +55,8 @@ def test_unknown_subset_is_a_clear_error():
 
 def test_every_named_subset_is_listed():
     assert set(kinetre.subset_names()) == set(SUBSETS)
+
+
+def test_exact_joint_name_wins_over_subset_name():
+    assert subset_mask(KINECT20, "Spine").sum() == 1
+    assert subset_mask(KINECT20, "spine").sum() == 4

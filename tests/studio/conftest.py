@@ -5,6 +5,7 @@ import os
 import socket
 import subprocess
 import sys
+import tempfile
 import time
 from pathlib import Path
 
@@ -26,12 +27,14 @@ def start_server(mesh: str | None = None, nodes: int = 128, sample_motion: bool 
     code = (f"from kinetre.studio.app import run_studio; run_studio({mesh!r}, '127.0.0.1', {port}, False, "
             f"nodes={nodes}, sample_motion={sample_motion})")
     env = dict(os.environ, PYTHONUNBUFFERED="1")
-    proc = subprocess.Popen([sys.executable, "-c", code], env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT)
+    log = tempfile.TemporaryFile()  # not a pipe: nobody reads it while the server runs, so it must not fill
+    proc = subprocess.Popen([sys.executable, "-c", code], env=env, stdout=log, stderr=subprocess.STDOUT)
     url = f"http://127.0.0.1:{port}"
     deadline = time.monotonic() + timeout
     while time.monotonic() < deadline:
         if proc.poll() is not None:
-            raise RuntimeError(f"studio exited: {proc.stdout.read().decode()[-2000:]}")
+            log.seek(0)
+            raise RuntimeError(f"studio exited: {log.read().decode()[-2000:]}")
         try:
             if httpx.get(url + "/api/state", timeout=2).status_code == 200:
                 return proc, url

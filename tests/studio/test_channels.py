@@ -67,3 +67,17 @@ def test_next_times_out_without_frames():
 
     frame, waited = asyncio.run(run())
     assert frame is None and 0.15 < waited < 2.0
+
+
+def test_urgent_subjects_jump_the_line():
+    async def run():
+        hub = Hub()
+        sub = hub.subscribe("kinetre.skeleton.*", urgent=("kinetre.transforms",))
+        for i in range(5):
+            hub.publish(Frame(f"kinetre.skeleton.c{i}", 1, 0.0, b""))
+        hub.publish(Frame("kinetre.transforms", 9, 0.0, b""))
+        return [(await sub.next(timeout=1)).subject for _ in range(6)]
+
+    order = asyncio.run(run())
+    assert order[0] == "kinetre.transforms"
+    assert order[1:] == [f"kinetre.skeleton.c{i}" for i in range(5)]

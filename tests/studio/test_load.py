@@ -33,6 +33,8 @@ async def paced_client(url, walk, index, stop_at, possess):
     rng = random.Random(index)
     sent = bad = 0
     async with StudioClient(url) as c:
+        if index % 5 == 0:
+            await c.send({"type": "subscribe", "skeletons": True})  # a viewer page: sees everybody
         if possess:
             await c.send(frame_message(1, walk[0]))
             sent = 1
@@ -53,6 +55,7 @@ async def paced_client(url, walk, index, stop_at, possess):
             await asyncio.sleep(1 / 30)
         stats = await c.stats(timeout=120)
         return {"sent": sent, "bad": bad, "stats": stats, "transforms": c.transform_count,
+                "skeletons": sum(m["type"] == "skeleton" for m in c.messages), "viewer": index % 5 == 0,
                 "errors": sum(m["type"] == "error" for m in c.messages)}
 
 
@@ -100,7 +103,9 @@ def test_fifty_clients_with_malformed_messages(loaded_studio, walk):
     assert sum(r["bad"] for r in paced) > 100
     # the two possessing clients kept the solver busy and every client saw node transforms
     assert all(r["transforms"] >= 5 for r in paced), [r["transforms"] for r in paced]
+    assert all((r["skeletons"] > 100) == r["viewer"] for r in paced)
     assert worst_http < 10.0
     print(json.dumps({"fast_frames": fast["sent"], "paced_frames": sum(r["sent"] for r in paced),
                       "malformed": sum(r["bad"] for r in paced), "worst_http_s": round(worst_http, 3),
-                      "min_transforms_per_client": min(r["transforms"] for r in paced)}))
+                      "min_transforms_per_client": min(r["transforms"] for r in paced),
+                      "median_transforms_per_client": sorted(r["transforms"] for r in paced)[len(paced) // 2]}))

@@ -110,5 +110,5 @@ def mesh_from_trimesh(loaded, source: str = "") -> Mesh:
         material = getattr(visual, "material", None)
     elif getattr(visual, "kind", None) == "vertex":
         colors = np.ascontiguousarray(visual.vertex_colors, dtype=np.uint8)
-    return Mesh(vertices=vertices, faces=faces, normals=vertex_normals(vertices, faces), uvs=uvs,
+    return Mesh(vertices=vertices, faces=faces, normals=vertex_normals(vertices, faces, weld=uvs is not None), uvs=uvs,
                 colors=colors, material=material, source=source)

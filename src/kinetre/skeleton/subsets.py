@@ -53,6 +53,9 @@ def subset_mask(model: SkeletonModel, subset: str | list[str] | tuple[str, ...] 
     items = [subset] if isinstance(subset, str) else list(subset)
     mask = np.zeros(j, dtype=bool)
     for item in items:
+        if item in model.joints:  # an exact joint name wins over a subset ("Spine" vs "spine")
+            mask[model.joints.index(item)] = True
+            continue
         key = item.strip().lower()
         if key in ("whole body", "all", "body"):
             mask[:] = True

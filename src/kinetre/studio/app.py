@@ -95,6 +95,7 @@ class ClientStats:
     received: int = 0
     malformed: int = 0
     last_seq: int = -1
+    skeletons: bool = False  # forward other users' skeleton frames to this client
 
 
 @dataclass
@@ -141,6 +142,8 @@ class Studio:
                 self.scene.fit(client)
             elif kind == "player":
                 await (self.start_sample() if msg.get("on") else self.stop_sample())
+            elif kind == "subscribe":
+                stats.skeletons = bool(msg.get("skeletons"))
             elif kind == "stats":
                 self.reply(client, {"type": "stats", "client": client, "received": stats.received,
                                     "malformed": stats.malformed, "last_seq": stats.last_seq})
@@ -272,8 +275,8 @@ def create_app(mesh_path: str | None = None, nodes: int = NODES, sample_motion: 
     async def ws_endpoint(ws: WebSocket) -> None:
         await ws.accept()
         client = f"c{next(clients)}"
-        studio.stats[client] = ClientStats()
-        sub = hub.subscribe(TRANSFORMS, STATE, SKELETONS, f"kinetre.client.{client}")
+        studio.stats[client] = stats = ClientStats()
+        sub = hub.subscribe(SKELETONS, urgent=(TRANSFORMS, STATE, f"kinetre.client.{client}"))
         await ws.send_text(json.dumps({"type": "welcome", "client": client,
                                        "channel": f"kinetre.skeleton.{client}"}))
         await ws.send_text(json.dumps(studio.scene.state()))
@@ -287,8 +290,10 @@ def create_app(mesh_path: str | None = None, nodes: int = NODES, sample_motion: 
                     return
                 if frame.subject == TRANSFORMS:
                     await ws.send_bytes(frame.data)
-                elif frame.subject.startswith("kinetre.skeleton.") and frame.subject.endswith("." + client):
-                    continue  # a page draws its own skeleton from its own tracker
+                elif frame.subject.startswith("kinetre.skeleton."):
+                    # other users' skeletons only for viewers that asked; a page draws its own itself
+                    if stats.skeletons and not frame.subject.endswith("." + client):
+                        await ws.send_text(frame.data.decode())
                 else:
                     await ws.send_text(frame.data.decode())
 

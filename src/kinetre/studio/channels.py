@@ -67,28 +67,31 @@ def subject_matches(pattern: str, subject: str) -> bool:
 class Subscription:
     """The receiving end of `Hub.subscribe`: a latest-wins slot per matching subject."""
 
-    def __init__(self, hub: "Hub", patterns: tuple[str, ...]):
+    def __init__(self, hub: "Hub", patterns: tuple[str, ...], urgent: tuple[str, ...] = ()):
         self.patterns = patterns
+        self.urgent = urgent
         self._hub = hub
+        self._first: dict[str, Frame] = {}  # subjects matching `urgent`, delivered before the others
         self._latest: dict[str, Frame] = {}  # insertion order = order subjects became pending
         self._wakeup = asyncio.Event()
         self.skipped = 0  # frames replaced before they were read (how far a slow reader fell behind)
         self.closed = False
 
     def _offer(self, frame: Frame) -> None:
-        if frame.subject in self._latest:
+        slots = self._first if any(subject_matches(p, frame.subject) for p in self.urgent) else self._latest
+        if frame.subject in slots:
             self.skipped += 1
             # keep the subject's place in line, replace its frame
-        self._latest[frame.subject] = frame
+        slots[frame.subject] = frame
         self._wakeup.set()
 
     def poll(self) -> Frame | None:
-        """The oldest pending subject's newest frame, or None when nothing is pending."""
-        if not self._latest:
+        """The oldest pending subject's newest frame (urgent subjects first), or None when nothing is pending."""
+        slots = self._first or self._latest
+        if not slots:
             return None
-        subject = next(iter(self._latest))
-        frame = self._latest.pop(subject)
-        if not self._latest:
+        frame = slots.pop(next(iter(slots)))
+        if not self._first and not self._latest:
             self._wakeup.clear()
         return frame
 
@@ -119,7 +122,7 @@ class Channels(Protocol):
 
     def publish(self, frame: Frame) -> None: ...
 
-    def subscribe(self, *patterns: str) -> Subscription: ...
+    def subscribe(self, *patterns: str, urgent: tuple[str, ...] = ()) -> Subscription: ...
 
 
 @dataclass
@@ -135,9 +138,13 @@ class Hub:
             if any(subject_matches(p, frame.subject) for p in sub.patterns):
                 sub._offer(frame)
 
-    def subscribe(self, *patterns: str) -> Subscription:
-        """One latest-wins subscription to every subject matching any of `patterns`."""
-        sub = Subscription(self, patterns)
+    def subscribe(self, *patterns: str, urgent: tuple[str, ...] = ()) -> Subscription:
+        """One latest-wins subscription to every subject matching any of `patterns` or `urgent`.
+
+        Frames on `urgent` subjects are delivered before any other pending frame (a viewer that is
+        behind gets the node transforms before other users' skeletons).
+        """
+        sub = Subscription(self, patterns + tuple(urgent), tuple(urgent))
         self._subs.append(sub)
         return sub
 

@@ -5,7 +5,8 @@ Client → server (WebSocket text, JSON objects with a "type"):
      "positions": [[x, y, z] × J] (metres, +Y up; null rows allowed), "tracked": [bool × J]}
     {"type": "possess", "subset": str | [str] | null}   {"type": "release"}
     {"type": "subset", "subset": ...}   {"type": "place", "scale": s, "position": [3], "yaw": radians}
-    {"type": "fit"}   {"type": "player", "on": bool}   {"type": "record", "on": bool}   {"type": "stats"}
+    {"type": "fit"}   {"type": "player", "on": bool}   {"type": "stats"}
+    {"type": "subscribe", "skeletons": bool}   (also receive the other users' skeleton frames)
 
 Server → client: JSON {"type": "welcome" | "state" | "skeleton" | "stats" | "error" | "progress", …}
 and binary transform blocks (little-endian):

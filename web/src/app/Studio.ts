@@ -82,7 +82,11 @@ export class Studio {
     this.socket = new StudioSocket(url, {
       onMessage: (m) => this.onMessage(m),
       onTransforms: (b) => this.onTransforms(b),
-      onConnection: (open) => { this.connected = open; this.updateStatus(); },
+      onConnection: (open) => {
+        this.connected = open;
+        if (open) this.socket.send({ type: 'subscribe', skeletons: true }); // draw the other users too
+        this.updateStatus();
+      },
     });
     this.viewport.onFrame(() => this.frame());
   }

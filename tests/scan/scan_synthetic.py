@@ -16,6 +16,7 @@ from PIL import Image
 
 DATA = Path(__file__).resolve().parents[2] / ".." / "shared" / "data"
 SPOT = DATA / "meshes" / "spot.obj"
+REDWOOD = DATA / "rgbd" / "redwood_livingroom"
 
 
 @dataclass(frozen=True)
@@ -145,3 +146,10 @@ def surface_distance(points: np.ndarray, vertices: np.ndarray, faces: np.ndarray
     rs = o3d.t.geometry.RaycastingScene()
     rs.add_triangles(o3d.core.Tensor(vertices.astype(np.float32)), o3d.core.Tensor(faces.astype(np.uint32)))
     return rs.compute_distance(o3d.core.Tensor(points.astype(np.float32))).numpy()
+
+
+def to_world(vertices: np.ndarray, transform: np.ndarray, first_pose: np.ndarray) -> np.ndarray:
+    """Output-mesh vertices (N, 3) back to the synthetic world: undo the output transform, then camera 0."""
+    inverse = np.linalg.inv(transform)
+    camera = vertices @ inverse[:3, :3].T + inverse[:3, 3]
+    return camera @ first_pose[:3, :3].T + first_pose[:3, 3]
