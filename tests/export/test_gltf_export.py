@@ -34,6 +34,7 @@ def test_capsule_take_is_valid_and_faithful(tmp_path, capsule_take, suffix, stre
 
     report = validate_gltf(out)
     assert report["issues"]["numErrors"] == 0, report["issues"]["messages"]
+    assert report["issues"]["numWarnings"] == 0, report["issues"]["messages"]
     assert report["info"]["hasSkins"] and report["info"]["animationCount"] == 1
     assert report["info"]["totalVertexCount"] == len(mesh.vertices)
 
@@ -169,6 +170,18 @@ def test_skin_weights_are_normalised_in_float32(capsule_take):
     for row_j, row_w in zip(joints, weights):
         nonzero = row_j[row_w > 0]
         assert len(set(nonzero.tolist())) == len(nonzero)
+
+
+def test_more_than_255_nodes_use_16_bit_joints(tmp_path, capsule_take):
+    mesh, _, _, fps = capsule_take
+    graph = synthetic_graph(mesh, 300, np.random.default_rng(0))
+    poses = bend_poses(graph, 3, np.random.default_rng(0))
+    write_gltf(tmp_path / "many.glb", mesh, graph, poses, fps)
+    report = validate_gltf(tmp_path / "many.glb")
+    assert report["issues"]["numErrors"] == 0 and report["issues"]["numWarnings"] == 0
+    player = GltfPlayer(tmp_path / "many.glb")
+    assert player.doc.accessors[player.primitive.attributes.JOINTS_0].componentType == 5123   # UNSIGNED_SHORT
+    assert fidelity(tmp_path / "many.glb", mesh, graph, poses, fps).max() < 1e-5
 
 
 def test_bad_inputs_raise_export_errors(tmp_path, capsule_take):

@@ -6,6 +6,7 @@ import subprocess
 
 import numpy as np
 import pytest
+from kinetre.deform.pose import GraphPose
 from kinetre.errors import ExportError
 from kinetre.export.render import Camera
 from kinetre.export.video import BONE_RGB, draw_skeletons, take_bounds, write_video
@@ -102,6 +103,9 @@ def test_bad_requests_raise_export_errors(tmp_path, capsule_take):
         write_video(tmp_path / "take.mp4", mesh, graph, [], fps)
     with pytest.raises(ExportError, match="2 skeleton frames for 12 poses"):
         write_video(tmp_path / "take.mp4", mesh, graph, poses, fps, skeletons=[[], []])
+    bad = [GraphPose(poses[0].rotations, np.full_like(poses[0].translations, np.inf))]
+    with pytest.raises(ExportError, match=r"take\.mp4: .*non-finite"):
+        write_video(tmp_path / "take.mp4", mesh, graph, bad, fps)
     (tmp_path / "file").write_text("x")
     with pytest.raises(ExportError, match="cannot create the folder"):
         write_video(tmp_path / "file" / "take.mp4", mesh, graph, poses[:2], fps)

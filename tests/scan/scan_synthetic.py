@@ -29,7 +29,16 @@ class Scene:
     other_faces: list
 
 
-def spot_on_plane(length: float = 0.4, plane_size: float = 1.2, offset=(0.0, 0.0, 0.0)) -> Scene:
+def _clutter() -> tuple[list, list]:
+    """Two static boxes behind the object: a bare floor gives ICP nothing to hold on to across it."""
+    boxes = [trimesh.creation.box((0.25, 0.3, 0.25)), trimesh.creation.box((0.2, 0.18, 0.3))]
+    boxes[0].apply_translation((-0.4, 0.15, -0.35))
+    boxes[1].apply_translation((0.4, 0.09, -0.3))
+    return [np.asarray(b.vertices) for b in boxes], [np.asarray(b.faces) for b in boxes]
+
+
+def spot_on_plane(length: float = 0.4, plane_size: float = 1.2, offset=(0.0, 0.0, 0.0),
+                  clutter: bool = False) -> Scene:
     """Spot the cow scaled to `length` metres long, standing on a square slab whose top is y = 0."""
     mesh = trimesh.load(SPOT, force="mesh", process=True)
     vertices = np.asarray(mesh.vertices, float)
@@ -38,14 +47,17 @@ def spot_on_plane(length: float = 0.4, plane_size: float = 1.2, offset=(0.0, 0.0
     vertices += offset
     slab = trimesh.creation.box((plane_size, 0.04, plane_size))
     slab.apply_translation((0.0, -0.02, 0.0))
-    return Scene(vertices, np.asarray(mesh.faces), [np.asarray(slab.vertices)], [np.asarray(slab.faces)])
+    scene = empty_plane(plane_size, clutter)
+    return Scene(vertices, np.asarray(mesh.faces), scene.other_vertices, scene.other_faces)
 
 
-def empty_plane(plane_size: float = 1.2) -> Scene:
-    """The slab alone (the 'before' of a change scan)."""
+def empty_plane(plane_size: float = 1.2, clutter: bool = False) -> Scene:
+    """The slab alone (with `clutter`, two boxes on it): the scene once the object is taken away."""
     slab = trimesh.creation.box((plane_size, 0.04, plane_size))
     slab.apply_translation((0.0, -0.02, 0.0))
-    return Scene(np.zeros((0, 3)), np.zeros((0, 3), int), [np.asarray(slab.vertices)], [np.asarray(slab.faces)])
+    vertices, faces = _clutter() if clutter else ([], [])
+    return Scene(np.zeros((0, 3)), np.zeros((0, 3), int), [np.asarray(slab.vertices)] + vertices,
+                 [np.asarray(slab.faces)] + faces)
 
 
 def look_at(eye, target, up=(0.0, 1.0, 0.0)) -> np.ndarray:

@@ -104,12 +104,13 @@ def test_lost_frame_is_rejected_and_never_fused(spot_scene, tmp_path):
 
 
 def test_change_segmentation_isolates_the_removed_object(tmp_path):
-    scene = synthetic.spot_on_plane()
+    # two static boxes stay put: a bare floor alone cannot anchor the second sweep to the first
+    scene = synthetic.spot_on_plane(clutter=True)
     poses = synthetic.orbit(6, arc_degrees=40.0)
     k = synthetic.camera_matrix(320, 240)
     # scan the cow, take it away, scan again: the object is what changed
     with_cow = synthetic.render(scene, poses, k, 320, 240, seed=4)
-    empty = synthetic.render(synthetic.empty_plane(), poses[::-1], k, 320, 240, seed=5)
+    empty = synthetic.render(synthetic.empty_plane(clutter=True), poses[::-1], k, 320, 240, seed=5)
     before = synthetic.write_redwood(tmp_path / "with_cow", with_cow[0], with_cow[1], k, 320, 240)
     after = synthetic.write_redwood(tmp_path / "empty", empty[0], empty[1], k, 320, 240)
     result = scan(after, tmp_path / "cow.glb", segment="change", before=before, voxel=0.01, progress=False)

@@ -190,6 +190,12 @@ def _static_document(path, mesh: Mesh, name: str) -> gl.GLTF2:
     prim = doc.meshes[0].primitives[0]
     if doc.accessors[prim.attributes.POSITION].count != mesh.vertices.shape[0]:
         raise ExportError(f"{path}: the exporter changed the vertex count, so the skin would not match")
+    # trimesh leaves bufferView targets out (a validator hint): vertex data and indices are known here
+    for attr in ("POSITION", "NORMAL", "TEXCOORD_0", "COLOR_0"):
+        index = getattr(prim.attributes, attr)
+        if index is not None:
+            doc.bufferViews[doc.accessors[index].bufferView].target = gl.ARRAY_BUFFER
+    doc.bufferViews[doc.accessors[prim.indices].bufferView].target = gl.ELEMENT_ARRAY_BUFFER
     doc.meshes[0].name = name
     doc.nodes, doc.scenes, doc.scene = [], [], 0
     return doc

@@ -81,7 +81,10 @@ def write_video(path, mesh: Mesh, graph: DeformationGraph, poses: list[GraphPose
     if ffmpeg is None:
         raise ExportError(f"{path}: video export needs the ffmpeg command (Debian package ffmpeg)")
 
-    lo, hi = take_bounds(mesh, graph, poses, skeletons)
+    try:
+        lo, hi = take_bounds(mesh, graph, poses, skeletons)
+    except ExportError as err:
+        raise ExportError(f"{path}: {err}") from None
     camera = Camera(lo, hi, (width, height))
     colors = mesh.colors
     texture = material_image(mesh.material) if mesh.uvs is not None else None

@@ -26,6 +26,7 @@ from .surface import (CAMERA_TO_Y_UP, ScanMesh, decimate, orient_outward, remove
 from .track import TrackingParams, track_frame
 
 SEGMENTS = (None, "plane", "change")
+MAX_VIEWS = 60  # depth frames kept per sweep to tell seen-empty space from unseen space in change detection
 
 
 @dataclass(frozen=True)
@@ -60,6 +61,7 @@ class _Fused:
     poses: list
     accepted: list
     first_view: np.ndarray | None  # (N, 3) world points of the first accepted frame
+    views: list  # (depth, pose) of up to MAX_VIEWS accepted frames, for change detection
 
 
 def fuse_sequence(sequence: RGBDSequence, volume: TSDFVolume, params: TrackingParams, *,
@@ -72,7 +74,8 @@ def fuse_sequence(sequence: RGBDSequence, volume: TSDFVolume, params: TrackingPa
     """
     from tqdm import tqdm
     camera = sequence.intrinsics
-    fused = _Fused([], [], None)
+    fused = _Fused([], [], None, [])
+    keep_every = max(1, int(np.ceil(len(sequence) / MAX_VIEWS)))
     previous = None
     bar = tqdm(range(len(sequence)), desc=label, unit="frame", disable=not progress, file=sys.stderr,
                leave=False)
@@ -92,6 +95,8 @@ def fuse_sequence(sequence: RGBDSequence, volume: TSDFVolume, params: TrackingPa
             continue  # a lost frame never touches the model
         volume.integrate(color, depth, camera, pose)
         previous = (color, depth, pose)
+        if index % keep_every == 0:
+            fused.views.append((depth, pose, camera))
         if fused.first_view is None:
             fused.first_view = _world_points(depth, camera, pose)
     bar.close()
@@ -171,7 +176,7 @@ def _scan(frames, out_path, *, segment, before, voxel, intrinsics, camera, depth
     mesh = ScanMesh(vertices, faces, colors)
     transform = CAMERA_TO_Y_UP.copy()
     if segment == "change":
-        change = changed_voxels(before_volume.voxels(), volume.voxels())
+        change = changed_voxels(before_volume.voxels(), volume.voxels(), pre.views, main.views)
         if not change.object_in_after:
             vertices, faces, colors = before_volume.triangle_mesh()
             mesh = ScanMesh(vertices, faces, colors)

@@ -2,9 +2,9 @@
 
 plane : the dominant plane of a view (RANSAC) is the table or floor the object stands on; everything on or
         below it goes, and the largest connected component left is the object.
-change : two scans of the same place, with and without the object. Voxels seen in both whose truncated signed
-        distance changed by more than `threshold` (in units of the truncation distance) belong to the object;
-        their largest 26-connected component is kept and the mesh is cut to it.
+change : two scans of the same place, with and without the object. Near-surface voxels whose truncated signed
+        distance changed by more than `threshold` (in units of the truncation distance) between the scans
+        belong to the object; their largest 26-connected component is kept and the mesh is cut to it.
 """
 from __future__ import annotations
 
@@ -104,24 +104,75 @@ class Change:
     object_in_after: bool
 
 
-def changed_voxels(before: Voxels, after: Voxels, threshold: float = 0.5, min_weight: float = 1.0) -> Change:
-    """Voxels observed in both scans whose TSDF changed by more than `threshold`; largest component."""
-    codes_b = _codes(before.keys)
-    order = np.argsort(codes_b)
-    at = _lookup(codes_b[order], _codes(after.keys))
-    both = at >= 0
-    ib, ia = order[at[both]], np.flatnonzero(both)
-    seen = (before.weight[ib] >= min_weight) & (after.weight[ia] >= min_weight)
-    ib, ia = ib[seen], ia[seen]
-    delta = after.tsdf[ia] - before.tsdf[ib]
-    moved = np.abs(delta) > threshold
-    if not np.any(moved):
+def seen_free(points: np.ndarray, views, margin: float) -> np.ndarray:
+    """(N,) bool: some view saw through the (N, 3) world points, i.e. they lie more than `margin` metres in front
+    of the depth that view measured. views : sequence of (depth (H, W) float32 m, pose (4, 4) camera-to-world,
+    Intrinsics).
+
+    A sparse TSDF stores only voxels near an observed surface, so empty space far from every surface is never
+    allocated; the raw depth frames still say it was seen empty.
+    """
+    free = np.zeros(len(points), bool)
+    for depth, pose, camera in views:
+        h, w = depth.shape
+        local = (points - pose[:3, 3]) @ pose[:3, :3]
+        z = local[:, 2]
+        ok = z > 0.05
+        u = np.full(len(z), -1, np.int64)
+        v = np.full(len(z), -1, np.int64)
+        u[ok] = np.round(local[ok, 0] * camera.fx / z[ok] + camera.cx).astype(np.int64)
+        v[ok] = np.round(local[ok, 1] * camera.fy / z[ok] + camera.cy).astype(np.int64)
+        ok &= (u >= 0) & (u < w) & (v >= 0) & (v < h)
+        measured = np.zeros(len(z), np.float32)
+        measured[ok] = depth[v[ok], u[ok]]
+        free |= ok & (measured > 0) & (z < measured - margin)
+    return free
+
+
+def _signed(voxels: Voxels, other: Voxels, other_views, min_weight: float) -> tuple[np.ndarray, ...]:
+    """For the near-surface voxels of `voxels`: (keys, own tsdf, the other scan's tsdf, known mask)."""
+    near = (voxels.weight >= min_weight) & (np.abs(voxels.tsdf) < 0.99)
+    keys, own = voxels.keys[near], voxels.tsdf[near]
+    codes = _codes(other.keys)
+    order = np.argsort(codes)
+    at = _lookup(codes[order], _codes(keys))
+    theirs = np.ones(len(keys), np.float32)
+    known = np.zeros(len(keys), bool)
+    hit = at >= 0
+    idx = order[at[hit]]
+    observed = other.weight[idx] >= min_weight
+    theirs[np.flatnonzero(hit)[observed]] = other.tsdf[idx[observed]]
+    known[np.flatnonzero(hit)[observed]] = True
+    # not stored by the other scan: known free (tsdf = +1) if its cameras saw through it
+    rest = ~known
+    centres = (keys[rest] + 0.5) * voxels.voxel_size
+    known[np.flatnonzero(rest)] = seen_free(centres, other_views, margin=2.0 * voxels.voxel_size)
+    return keys, own, theirs, known
+
+
+def changed_voxels(before: Voxels, after: Voxels, before_views=(), after_views=(), threshold: float = 0.5, min_weight: float = 1.0) -> Change:
+    """Near-surface voxels of either scan whose TSDF differs from the other scan's by more than `threshold`.
+
+    The other scan's value is its stored TSDF, or +1 (free) where its depth frames (`*_views`, see `seen_free`)
+    saw through the voxel; voxels neither scan knows are ignored. The largest 26-connected component is kept.
+    """
+    parts = []
+    for mine, other, views, sign in ((after, before, before_views, 1.0), (before, after, after_views, -1.0)):
+        keys, own, theirs, known = _signed(mine, other, views, min_weight)
+        delta = sign * (own - theirs)  # after - before
+        moved = known & (np.abs(delta) > threshold)
+        parts.append((keys[moved], delta[moved]))
+    keys = np.concatenate([p[0] for p in parts])
+    delta = np.concatenate([p[1] for p in parts])
+    if len(keys) == 0:
         raise BadScanError("change segmentation: the two scans do not differ anywhere they overlap "
                            "(was the object moved, and do the sweeps see the same place?)")
-    component = largest_voxel_component(after.keys[ia[moved]])
-    inside = np.isin(_codes(after.keys[ia[moved]]), _codes(component))
-    # Where the object is, the surface (small or negative TSDF) replaces free space (TSDF = +1).
-    return Change(component, bool(np.mean(delta[moved][inside]) < 0))
+    keys, first = np.unique(keys, axis=0, return_index=True)
+    delta = delta[first]
+    component = largest_voxel_component(keys)
+    inside = np.isin(_codes(keys), _codes(component))
+    # Where the object is, its surface (small or negative TSDF) replaces free space (TSDF = +1).
+    return Change(component, bool(np.mean(delta[inside]) < 0))
 
 
 def cut_to_voxels(mesh: ScanMesh, keys: np.ndarray, voxel_size: float, dilation: int = 1) -> ScanMesh:

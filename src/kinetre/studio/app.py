@@ -40,7 +40,7 @@ from ..mesh.load import load_mesh
 from ..mesh.mesh import Mesh
 from .channels import Frame, Hub
 from .placement import standing_mesh
-from .protocol import ProtocolError, parse_message, parse_skeleton, skeleton_json
+from .protocol import ProtocolError, parse_message, parse_skeleton, with_client
 from .scene import SKELETONS, STATE, TRANSFORMS, Scene, check_subset, now_ms, resample
 
 NODES = 128  # graph size for meshes loaded in the studio (the paper's default)
@@ -123,8 +123,8 @@ class Studio:
                 seq, t, skeleton = parse_skeleton(msg)
                 stats.received += 1
                 stats.last_seq = seq
-                self.hub.publish(Frame(f"kinetre.skeleton.{client}", seq, t,
-                                       skeleton_json(client, seq, t, skeleton)))
+                self.hub.publish(Frame(f"kinetre.skeleton.{client}", seq, t, with_client(text, client),
+                                       (seq, t, skeleton)))
             elif kind == "possess":
                 if self.player is not None and client != SAMPLE_CLIENT:
                     await self.stop_sample()  # a live user takes over from the sample motion

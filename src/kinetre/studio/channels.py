@@ -24,7 +24,7 @@ from __future__ import annotations
 import asyncio
 import time
 from dataclasses import dataclass, field
-from typing import Protocol
+from typing import Any, Protocol
 
 
 @dataclass(frozen=True)
@@ -41,12 +41,16 @@ class Frame:
         The publisher's timestamp in milliseconds (Unix epoch), carried end to end for latency.
     data : bytes
         The payload (JSON text or a binary transform block); the hub never looks inside.
+    value : object, optional
+        The payload already decoded, when publisher and subscriber share a process (the embedded
+        hub); a network bus leaves it None and subscribers decode `data`.
     """
 
     subject: str
     seq: int
     t: float
     data: bytes
+    value: Any = field(default=None, compare=False, repr=False)
 
 
 def subject_matches(pattern: str, subject: str) -> bool:
@@ -130,13 +134,17 @@ class Hub:
     """The in-process bus embedded in the studio server. Not thread-safe: use it from the event loop."""
 
     _subs: list[Subscription] = field(default_factory=list)
+    _routes: dict[str, list[Subscription]] = field(default_factory=dict)  # subject → its subscribers
     published: int = 0
 
     def publish(self, frame: Frame) -> None:
         self.published += 1
-        for sub in self._subs:
-            if any(subject_matches(p, frame.subject) for p in sub.patterns):
-                sub._offer(frame)
+        route = self._routes.get(frame.subject)
+        if route is None:
+            route = [sub for sub in self._subs if any(subject_matches(p, frame.subject) for p in sub.patterns)]
+            self._routes[frame.subject] = route
+        for sub in route:
+            sub._offer(frame)
 
     def subscribe(self, *patterns: str, urgent: tuple[str, ...] = ()) -> Subscription:
         """One latest-wins subscription to every subject matching any of `patterns` or `urgent`.
@@ -146,8 +154,10 @@ class Hub:
         """
         sub = Subscription(self, patterns + tuple(urgent), tuple(urgent))
         self._subs.append(sub)
+        self._routes.clear()
         return sub
 
     def _remove(self, sub: Subscription) -> None:
         if sub in self._subs:
             self._subs.remove(sub)
+            self._routes.clear()

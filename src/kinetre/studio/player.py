@@ -57,7 +57,7 @@ class MotionPlayer:
         frame = self.frames[index % len(self.frames)]
         self.seq += 1
         payload = skeleton_json(self.client, self.seq, t, frame)
-        self.hub.publish(Frame(self.subject, self.seq, t, payload))
+        self.hub.publish(Frame(self.subject, self.seq, t, payload, (self.seq, t, frame)))
 
     async def run(self) -> None:
         """Publish frames in real time (frames are skipped, not delayed, when the loop is late)."""

@@ -90,10 +90,19 @@ def parse_skeleton(msg: dict) -> tuple[int, float, Skeleton]:
 
 def skeleton_json(client: str, seq: int, t: float, skeleton: Skeleton) -> bytes:
     """The "skeleton" message forwarded to viewers (untracked rows become null)."""
-    rows = [[round(float(v), 4) for v in p] if ok else None
-            for p, ok in zip(skeleton.positions, skeleton.tracked)]
+    rows = [p if ok else None for p, ok in zip(np.round(skeleton.positions, 4).tolist(), skeleton.tracked)]
     return json.dumps({"type": "skeleton", "client": client, "seq": seq, "t": t, "model": skeleton.model.name,
                        "positions": rows, "tracked": skeleton.tracked.tolist()}).encode()
+
+
+def with_client(text: str | bytes, client: str) -> bytes:
+    """A validated client message (a JSON object) forwarded with the server's "client" key added last.
+
+    Appending is much cheaper than re-encoding every frame, and JSON parsers keep the last of
+    duplicate keys, so a client cannot pose as another.
+    """
+    raw = text.encode() if isinstance(text, str) else text
+    return raw.rstrip()[:-1] + b', "client": "' + client.encode() + b'"}'
 
 
 def pack_transforms(seq: int, mesh_id: int, matrices: np.ndarray, t_source: float, t_out: float) -> bytes:

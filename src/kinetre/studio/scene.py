@@ -148,10 +148,13 @@ class Scene:
     def receive(self, frame: Frame) -> None:
         """A skeleton frame from the hub (already validated by the server that published it)."""
         client = frame.subject.rsplit(".", 1)[-1]
-        try:
-            seq, t, skeleton = parse_skeleton(parse_message(frame.data))
-        except ProtocolError:
-            return
+        if frame.value is not None:
+            seq, t, skeleton = frame.value  # decoded by the publisher in this process
+        else:
+            try:
+                seq, t, skeleton = parse_skeleton(parse_message(frame.data))
+            except ProtocolError:
+                return
         user = self.user(client)
         if seq <= user.seq and user.frames:
             return  # late or duplicate frame: skip, never reorder

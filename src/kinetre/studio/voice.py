@@ -85,7 +85,7 @@ def jsgf_grammar(subsets: tuple[str, ...], garbage_words: tuple[str, ...], garba
     return (
         "#JSGF V1.0;\n"
         "grammar kinetre;\n"
-        f"public <utterance> = /{garbage_weight:g}/ <command> | /1/ <garbage>;\n"
+        f"public <utterance> = /{np.format_float_positional(garbage_weight, trim='-')}/ <command> | /1/ <garbage>;\n"
         "<command> = <verb> [[the] <part>] | <part>;\n"
         f"<verb> = {verbs};\n"
         f"<part> = {parts};\n"
@@ -170,6 +170,8 @@ class Recogniser:
             from pocketsphinx import Decoder, get_model_path
         except ImportError:
             raise KinetreError("voice commands need pocketsphinx: pip install 'kinetre[voice]'") from None
+        if not (np.isfinite(garbage_weight) and garbage_weight > 0):
+            raise KinetreError(f"voice grammar: garbage_weight must be a positive number, got {garbage_weight}")
         self.subsets = tuple(subset_names() if subsets is None else subsets)
         self.sentences = command_sentences(self.subsets)
         model = get_model_path()
