@@ -82,8 +82,11 @@ async function possess(page, name, subset = null) {
   await page.keyboard.press('f');
   await page.waitForTimeout(300);
   await page.keyboard.press('p');
-  await until(page, () => window.kinetre.state().possessing, null, 30000);
-  log(`${name}: possessing`, { users: (await state(page)).users });
+  await until(page, () => window.kinetre.state().possessing || document.querySelector('#message').className === 'error',
+    null, 60000);
+  const s = await state(page);
+  if (!s.possessing) throw new Error(`${name}: possess failed: ${s.message}`);
+  log(`${name}: possessing`, { users: s.users });
 }
 
 async function screenshot(page, file) {
@@ -157,8 +160,8 @@ async function two() {
     const b = await open(browser, 'B');
     await startCamera(a, 'A');
     await startCamera(b, 'B');
-    await possess(a, 'A', 'left arm');
-    await possess(b, 'B', 'right arm');
+    await possess(a, 'A', 'left leg');
+    await possess(b, 'B', 'right leg');
     await screenshot(a, 'studio-two-users.png');
     const s = await state(a);
     result.users = s.users;

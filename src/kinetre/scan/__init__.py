@@ -1,1 +1,10 @@
+"""Scanning (SPEC §5): RGB-D frames → frame-to-model tracking → TSDF fusion → segmentation → clean mesh.
 
+Needs the `scan` extra (Open3D); importing this package does not, only running a scan does.
+
+    >>> from kinetre.scan import scan                                    # doctest: +SKIP
+    >>> print(scan("frames/", "chair.ply", segment="plane").summary())    # doctest: +SKIP
+"""
+from .pipeline import ScanResult, scan, scan_zip
+
+__all__ = ["ScanResult", "scan", "scan_zip"]

@@ -9,11 +9,12 @@ ScalableTSDFVolume extracts nothing; the tensor grid works in 0.19 and 0.20.)
 
 Poses are camera-to-world (4, 4) float64; cameras look down +z with y down (OpenCV / Open3D convention).
 
-Open3D 0.19's grid samples voxel (i, j, k) at ((i, j, k) + 1/2) * voxel_size when integrating but reports
-marching-cubes vertices and ray-cast depths as if it sat at (i, j, k) * voxel_size, and its ray caster shoots
-pixel u through u + 1/2. We measured both on exact synthetic renderings (a fused model ray cast 1-2 cm behind
-the true surface; the mesh 3.8 mm off instead of 2.0 mm) and undo them here: meshes move by +1/2 voxel, ray
-casts start 1/2 voxel further along each axis with the principal point moved by -1/2 pixel.
+Open3D 0.19's tensor TSDF has two half-unit offsets, measured on exact synthetic renderings and undone here:
+integration looks up the depth pixel of a voxel by truncating its projection (not rounding), and the ray
+caster reports surfaces half a voxel (along each axis) short of where they were fused. Uncorrected, marching
+cubes lay 3.4 mm from the true surface instead of 0.4 mm (320x240, 1 cm voxels) and a ray cast rendered a
+single fused frame 1.6 cm behind it. So frames are integrated with the principal point moved by +1/2 pixel,
+and ray casts start from the camera moved by +1/2 voxel on each axis.
 """
 from __future__ import annotations
 
@@ -40,7 +41,7 @@ def open3d():
 class Voxels:
     """Every allocated voxel of a TSDF volume.
 
-    keys : (N, 3) int64 integer voxel coordinates (the voxel samples the point (keys + 1/2) * voxel_size)
+    keys : (N, 3) int64 integer voxel coordinates (the voxel samples the point keys * voxel_size)
     tsdf : (N,) float32 truncated signed distance in [-1, 1] (positive = free space in front of the surface)
     weight : (N,) float32 number of observations (0 = never seen)
     """
@@ -77,7 +78,9 @@ class TSDFVolume:
 
     def integrate(self, color: np.ndarray, depth: np.ndarray, camera: Intrinsics, pose: np.ndarray) -> None:
         """Fuse one frame: color (H, W, 3) uint8, depth (H, W) float32 metres, pose (4, 4) camera-to-world."""
-        k, extrinsic = self._tensor(camera.matrix), self._tensor(np.linalg.inv(pose))
+        k = camera.matrix.copy()
+        k[:2, 2] += 0.5  # Open3D truncates the projected pixel coordinate: make that a rounding
+        k, extrinsic = self._tensor(k), self._tensor(np.linalg.inv(pose))
         depth_image = self._image(depth.astype(np.float32))
         color_image = self._image(color.astype(np.float32) / 255.0)
         blocks = self.grid.compute_unique_block_coordinates(depth_image, k, extrinsic, 1.0, self.depth_max,
@@ -90,11 +93,9 @@ class TSDFVolume:
 
         The raycast of the fused model is the reference that frame-to-model tracking aligns to.
         """
-        k = camera.matrix.copy()
-        k[:2, 2] -= 0.5  # pixel-centre convention of Open3D's ray caster (see module notes)
         shifted = np.array(pose, dtype=np.float64)
-        shifted[:3, 3] += 0.5 * self.voxel_size  # voxel-centre convention (see module notes)
-        k, extrinsic = self._tensor(k), self._tensor(np.linalg.inv(shifted))
+        shifted[:3, 3] += 0.5 * self.voxel_size  # Open3D's ray caster is half a voxel short (module notes)
+        k, extrinsic = self._tensor(camera.matrix), self._tensor(np.linalg.inv(shifted))
         blocks = self._active_blocks()
         if blocks.shape[0] == 0:
             h, w = camera.height, camera.width
@@ -120,11 +121,14 @@ class TSDFVolume:
         return Voxels(keys, tsdf.astype(np.float32), weight.astype(np.float32), self.voxel_size)
 
     def triangle_mesh(self, weight_threshold: float = 1.0) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Marching cubes on the zero level set: (vertices (V, 3) float64 m, faces (F, 3) int64, colors (V, 3) float32)."""
+        """Marching cubes on the zero level set.
+
+        Returns vertices (V, 3) float64 metres, faces (F, 3) int64, colors (V, 3) float32 in [0, 1].
+        """
         if self.grid.hashmap().size() == 0:
             return np.zeros((0, 3)), np.zeros((0, 3), np.int64), np.zeros((0, 3), np.float32)
         mesh = self.grid.extract_triangle_mesh(weight_threshold=weight_threshold)
-        vertices = mesh.vertex.positions.numpy().astype(np.float64) + 0.5 * self.voxel_size
+        vertices = mesh.vertex.positions.numpy().astype(np.float64)
         faces = mesh.triangle.indices.numpy().astype(np.int64) if "indices" in mesh.triangle \
             else np.zeros((0, 3), np.int64)
         colors = mesh.vertex.colors.numpy().astype(np.float32) if "colors" in mesh.vertex \

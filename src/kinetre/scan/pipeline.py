@@ -1,4 +1,4 @@
-"""RGB-D frames in, a clean mesh ready to possess out: track → fuse → segment → marching cubes → clean → write.
+"""RGB-D frames in, a clean mesh ready to possess out: track, fuse, segment, marching cubes, clean, write.
 
     >>> from kinetre.scan.pipeline import scan                     # doctest: +SKIP
     >>> result = scan("frames/", "chair.ply", segment="plane")       # doctest: +SKIP
@@ -17,11 +17,11 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import BadScanError
+from ..errors import BadScanError, ExportError
 from .frames import Intrinsics, RGBDSequence, open_sequence, read_frame
 from .fuse import TSDFVolume
 from .segment import changed_voxels, cut_to_voxels, dominant_plane, remove_plane
-from .surface import (CAMERA_TO_Y_UP, ScanMesh, decimate, orient_outward, remove_small_components,
+from .surface import (CAMERA_TO_Y_UP, MESH_SUFFIXES, ScanMesh, decimate, orient_outward, remove_small_components,
                       rotation_between, write_mesh)
 from .track import TrackingParams, track_frame
 
@@ -88,7 +88,7 @@ def fuse_sequence(sequence: RGBDSequence, volume: TSDFVolume, params: TrackingPa
             result = track_frame(model, color, depth, camera, previous, params,
                                  guesses=guesses if previous is None else ())
             pose, ok = result.pose, result.accepted
-            bar.set_postfix(fitness=f"{result.fitness:.2f}", lost=result.reason[:24] if not ok else "")
+            bar.set_postfix_str(f"fitness {result.fitness:.2f}" + ("" if ok else f", rejected ({result.reason})"))
         fused.poses.append(pose)
         fused.accepted.append(ok)
         if not ok:
@@ -147,6 +147,8 @@ def _scan(frames, out_path, *, segment, before, voxel, intrinsics, camera, depth
                            "moved)")
     if not voxel or not np.isfinite(voxel) or voxel <= 0 or voxel > 0.2:
         raise BadScanError(f"voxel size must be in (0, 0.2] metres, got {voxel}")
+    if Path(out_path).suffix.lower() not in MESH_SUFFIXES:  # fail before minutes of fusion, not after
+        raise ExportError(f"{out_path}: scan output must end in {', '.join(MESH_SUFFIXES)}")
     sequence = open_sequence(frames, intrinsics, depth_scale, camera)
     volume = TSDFVolume(voxel, depth_max=depth_max)
     used = rejected = 0

@@ -145,12 +145,13 @@ def _signed(voxels: Voxels, other: Voxels, other_views, min_weight: float) -> tu
     known[np.flatnonzero(hit)[observed]] = True
     # not stored by the other scan: known free (tsdf = +1) if its cameras saw through it
     rest = ~known
-    centres = (keys[rest] + 0.5) * voxels.voxel_size
+    centres = keys[rest] * voxels.voxel_size
     known[np.flatnonzero(rest)] = seen_free(centres, other_views, margin=2.0 * voxels.voxel_size)
     return keys, own, theirs, known
 
 
-def changed_voxels(before: Voxels, after: Voxels, before_views=(), after_views=(), threshold: float = 0.5, min_weight: float = 1.0) -> Change:
+def changed_voxels(before: Voxels, after: Voxels, before_views=(), after_views=(), threshold: float = 0.5,
+                   min_weight: float = 1.0) -> Change:
     """Near-surface voxels of either scan whose TSDF differs from the other scan's by more than `threshold`.
 
     The other scan's value is its stored TSDF, or +1 (free) where its depth frames (`*_views`, see `seen_free`)
@@ -183,7 +184,7 @@ def cut_to_voxels(mesh: ScanMesh, keys: np.ndarray, voxel_size: float, dilation:
         offsets = np.stack(np.meshgrid(span, span, span, indexing="ij"), -1).reshape(-1, 3)
         grown = np.unique((keys[:, None, :] + offsets[None]).reshape(-1, 3), axis=0)
     codes = np.sort(_codes(grown))
-    vertex_keys = np.round(mesh.vertices / voxel_size - 0.5).astype(np.int64)  # voxel k samples (k + 1/2) v
+    vertex_keys = np.round(mesh.vertices / voxel_size).astype(np.int64)
     cut = keep_vertices(mesh, _lookup(codes, _codes(vertex_keys)) >= 0)
     if len(cut.faces) == 0:
         raise BadScanError("change segmentation: no surface lies where the scans changed")

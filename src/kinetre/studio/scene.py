@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import asyncio
 import json
+import logging
 import time
 from dataclasses import dataclass, field
 
@@ -24,6 +25,8 @@ from ..skeleton.subsets import subset_mask
 from .channels import Channels, Frame
 from .placement import Placement
 from .protocol import ProtocolError, pack_transforms, parse_message, parse_skeleton
+
+log = logging.getLogger("kinetre.studio")
 
 SKELETONS = "kinetre.skeleton.*"
 TRANSFORMS = "kinetre.transforms"
@@ -227,7 +230,11 @@ class Scene:
             while True:
                 await self._dirty.wait()
                 self._dirty.clear()
-                await self.solve_once()
+                try:
+                    await self.solve_once()
+                except Exception as exc:  # one bad frame must not stop the scene for everybody
+                    self.last_error = f"solve failed: {type(exc).__name__}: {exc}"
+                    log.exception("solve failed")
         finally:
             for task in helpers:
                 task.cancel()
@@ -248,7 +255,10 @@ class Scene:
             frame = await sub.next()
             if frame is None:
                 return
-            self.receive(frame)
+            try:
+                self.receive(frame)
+            except Exception:
+                log.exception("bad frame on %s", frame.subject)
 
     async def solve_once(self) -> GraphPose | None:
         """Solve with every possessing user's newest frame and publish the node matrices."""

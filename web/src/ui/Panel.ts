@@ -70,7 +70,10 @@ export class Panel {
     this.fileInput = $<HTMLInputElement>('file');
     this.subsetSelect = $<HTMLSelectElement>('subset');
     for (const name of SUBSETS) this.subsetSelect.add(new Option(name, name));
-    this.subsetSelect.addEventListener('change', () => actions.subset(this.subset));
+    this.subsetSelect.addEventListener('change', () => {
+      actions.subset(this.subset);
+      this.subsetSelect.blur(); // give the keyboard shortcuts back
+    });
 
     for (const id of ['camera', 'voice', 'sample', 'possess', 'release', 'fit', 'record'] as const) {
       const b = $<HTMLButtonElement>(id);

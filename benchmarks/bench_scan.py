@@ -1,0 +1,62 @@
+"""Scanning speed: frames per second of tracking + TSDF fusion at 640x480 on the CPU, by voxel size.
+
+Runs the real Redwood living-room frames (5 frames, 640x480) through `fuse_sequence` (RGB-D odometry guess,
+ray cast, frame-to-model ICP, integration) at three voxel sizes, and prints one JSON object per line:
+{"bench": "scan_fuse", "voxel_m", "threads", "frames", "fps", "seconds", "cpu_s", "blocks"}. Frames are read
+before timing; KinectFusion ran at 30 fps on a 2011 GPU. On a shared machine compare `cpu_s` with `seconds`.
+"""
+from __future__ import annotations
+
+import json
+import time
+from pathlib import Path
+
+import numpy as np
+from threadpoolctl import threadpool_limits
+
+from kinetre.scan.frames import open_sequence, read_frame
+from kinetre.scan.fuse import TSDFVolume
+from kinetre.scan.track import track_frame
+
+DATA = Path(__file__).resolve().parents[1] / ".." / "shared" / "data"
+VOXELS = (0.02, 0.01, 0.006)
+REPEATS = 2  # passes over the 5 frames (a new model each pass)
+
+
+def run(voxel: float, threads: int, frames) -> dict:
+    camera = frames[0][2]
+    seconds = cpu = 0.0
+    count = 0
+    for _ in range(REPEATS):
+        volume = TSDFVolume(voxel)
+        previous = None
+        start, cpu_start = time.perf_counter(), time.process_time()
+        for color, depth, _ in frames:
+            if previous is None:
+                pose = np.eye(4)
+            else:
+                result = track_frame(volume, color, depth, camera, previous)
+                if not result.accepted:
+                    raise SystemExit(f"bench_scan: tracking lost on real frames at voxel {voxel}: {result.reason}")
+                pose = result.pose
+            volume.integrate(color, depth, camera, pose)
+            previous = (color, depth, pose)
+            count += 1
+        seconds += time.perf_counter() - start
+        cpu += time.process_time() - cpu_start
+    return {"bench": "scan_fuse", "voxel_m": voxel, "threads": threads, "width": camera.width,
+            "height": camera.height, "frames": count, "fps": round(count / seconds, 3),
+            "seconds": round(seconds, 3), "cpu_s": round(cpu, 3), "blocks": int(volume.grid.hashmap().size())}
+
+
+def main() -> None:
+    sequence = open_sequence(DATA / "rgbd" / "redwood_livingroom")
+    frames = [(*read_frame(sequence, i), sequence.intrinsics) for i in range(len(sequence))]
+    for threads in (1, 2):
+        with threadpool_limits(limits=threads, user_api="openmp"):
+            for voxel in VOXELS:
+                print(json.dumps(run(voxel, threads, frames)), flush=True)
+
+
+if __name__ == "__main__":
+    main()
