@@ -35,9 +35,10 @@ class ScanResult:
 
     mesh_path : the written mesh; frames_used / frames_rejected : counts over all sequences
     vertices, faces : size of the written mesh; seconds : wall time
-    poses : (N, 4, 4) float64 camera-to-world pose of every frame of the main sequence (world = first camera;
-            rejected frames hold the pose tracking proposed); accepted : (N,) bool
-    transform : (4, 4) float64 from world (first camera, y down) to the written mesh's frame (+Y up)
+    poses : (N, 4, 4) float64 camera-to-world pose of every frame of the main sequence (world = the first
+            camera, of the `before` sweep when there is one; rejected frames hold the pose tracking proposed)
+    accepted : (N,) bool, the frames that were fused
+    transform : (4, 4) float64 from world (camera axes, y down) to the written mesh's frame (+Y up)
     """
 
     mesh_path: Path
@@ -61,7 +62,7 @@ class _Fused:
     poses: list
     accepted: list
     first_view: np.ndarray | None  # (N, 3) world points of the first accepted frame
-    views: list  # (depth, pose) of up to MAX_VIEWS accepted frames, for change detection
+    views: list  # (depth, pose, camera) of up to MAX_VIEWS accepted frames, for change detection
 
 
 def fuse_sequence(sequence: RGBDSequence, volume: TSDFVolume, params: TrackingParams, *,
@@ -126,7 +127,8 @@ def scan(frames: str | Path, out_path: str | Path, *, segment: str | None = None
     target_faces : decimate to about this many faces; min_component : floaters smaller than this fraction of
               the largest component are removed
     The mesh is in metres, +Y up: the first camera's frame turned upright, or with `segment="plane"` the plane
-    is y = 0 and the object is centred above the origin.
+    is y = 0 and the object is centred above the origin. The plane is the dominant one in the first fused
+    view (SPEC §5: "from the current view"), which is where a scan of an object on a table starts.
     threads : OpenMP threads for Open3D's kernels. One is the default because on a shared CPU OpenMP's
               spin-waiting threads made each odometry call 10-50x slower in our measurements.
     """
@@ -187,7 +189,8 @@ def _scan(frames, out_path, *, segment, before, voxel, intrinsics, camera, depth
         raise BadScanError(f"{sequence.root}: no surface was reconstructed (check depth scale and depth_max "
                            f"{depth_max} m)")
     if segment == "plane":
-        plane = dominant_plane(main.first_view, main.poses[0][:3, 3], max(1.5 * voxel, 0.01), seed)
+        first = next(p for p, ok in zip(main.poses, main.accepted) if ok)
+        plane = dominant_plane(main.first_view, first[:3, 3], max(1.5 * voxel, 0.01), seed)
         mesh = remove_plane(mesh, plane, margin=max(2.0 * voxel, 0.01))
         transform = _upright_on_plane(mesh, plane)
     mesh = remove_small_components(mesh, min_component)

@@ -118,7 +118,7 @@ class Studio:
         stats = self.stats[client]
         try:
             msg = parse_message(text)
-            kind = msg["type"]
+            kind = msg["type"]; import sys; import time as _t; print("DBG", round(_t.time() % 1000, 2), client, kind, file=sys.stderr, flush=True)
             if kind == "skeleton":
                 seq, t, skeleton = parse_skeleton(msg)
                 stats.received += 1
