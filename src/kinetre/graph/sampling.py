@@ -17,8 +17,28 @@ from .distance import distance_5d
 _HASH = (73856093, 19349663, 83492791)
 
 
+@njit(cache=True)
+def face_double_areas(vertices, faces):
+    """(F,) float64: twice each triangle's area (|e1 × e2|), without (F, 3, 3) temporaries."""
+    out = np.empty(faces.shape[0])
+    for f in range(faces.shape[0]):
+        a, b, c = faces[f, 0], faces[f, 1], faces[f, 2]
+        ux = vertices[b, 0] - vertices[a, 0]
+        uy = vertices[b, 1] - vertices[a, 1]
+        uz = vertices[b, 2] - vertices[a, 2]
+        vx = vertices[c, 0] - vertices[a, 0]
+        vy = vertices[c, 1] - vertices[a, 1]
+        vz = vertices[c, 2] - vertices[a, 2]
+        nx = uy * vz - uz * vy
+        ny = uz * vx - ux * vz
+        nz = ux * vy - uy * vx
+        out[f] = np.sqrt(nx * nx + ny * ny + nz * nz)
+    return out
+
+
 def surface_points(vertices: np.ndarray, faces: np.ndarray, normals: np.ndarray, count: int,
-                   rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
+                   rng: np.random.Generator, double_areas: np.ndarray | None = None
+                   ) -> tuple[np.ndarray, np.ndarray]:
     """Area-weighted random points on the triangles, with interpolated unit normals.
 
     Returns
@@ -26,9 +46,9 @@ def surface_points(vertices: np.ndarray, faces: np.ndarray, normals: np.ndarray,
     points : (count, 3) float64
     point_normals : (count, 3) float64
     """
-    tri = vertices[faces]
-    face_n = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
-    cum = np.cumsum(np.linalg.norm(face_n, axis=1))
+    if double_areas is None:
+        double_areas = face_double_areas(vertices, faces)
+    cum = np.cumsum(double_areas)
     chosen = np.searchsorted(cum, rng.random(count) * cum[-1], side="right")
     chosen = np.minimum(chosen, len(faces) - 1)
     # uniform barycentric coordinates by the square-root trick
@@ -36,11 +56,12 @@ def surface_points(vertices: np.ndarray, faces: np.ndarray, normals: np.ndarray,
     r2 = rng.random(count)
     bary = np.stack([1.0 - r1, r1 * (1.0 - r2), r1 * r2], axis=1)
     f = faces[chosen]
-    points = np.einsum("ni,nij->nj", bary, vertices[f])
+    tri = vertices[f]
+    points = np.einsum("ni,nij->nj", bary, tri)
     n = np.einsum("ni,nij->nj", bary, normals[f])
     length = np.linalg.norm(n, axis=1)
     flat = length < 1e-8  # normals cancel inside the triangle: use the face's own
-    n[flat] = face_n[chosen[flat]]
+    n[flat] = np.cross(tri[flat, 1] - tri[flat, 0], tri[flat, 2] - tri[flat, 0])
     n /= np.linalg.norm(n, axis=1)[:, None]
     return points, n
 
@@ -120,8 +141,8 @@ def sample_orientation_aware(vertices: np.ndarray, faces: np.ndarray, normals: n
         The R used.
     """
     rng = np.random.default_rng(seed)
-    area = 0.5 * np.linalg.norm(np.cross(vertices[faces[:, 1]] - vertices[faces[:, 0]],
-                                         vertices[faces[:, 2]] - vertices[faces[:, 0]]), axis=1).sum()
+    double_areas = face_double_areas(np.ascontiguousarray(vertices), np.ascontiguousarray(faces))
+    area = 0.5 * double_areas.sum()
     if radius is not None:
         if not radius > 0:
             raise BadGraphError(f"radius must be positive, got {radius}")
@@ -131,12 +152,13 @@ def sample_orientation_aware(vertices: np.ndarray, faces: np.ndarray, normals: n
             raise BadGraphError(f"nodes must be at least 2, got {nodes}")
         target = int(nodes)
     count = int(min(max(candidates_per_node * target, 2000), 400_000))
-    points, point_normals = surface_points(vertices, faces, normals, count, rng)
+    points, point_normals = surface_points(vertices, faces, normals, count, rng, double_areas)
     # Shift to the origin so grid cell indices stay small integers.
-    points = points - vertices.min(axis=0)
+    lowest = vertices.min(axis=0)
+    points = points - lowest
     if radius is not None:
         keep = dart_throw(points, point_normals, radius)
-        return points[keep] + vertices.min(axis=0), point_normals[keep], float(radius)
+        return points[keep] + lowest, point_normals[keep], float(radius)
 
     r = float(np.sqrt(area / target))
     lo, hi = 0.0, np.inf
@@ -157,4 +179,4 @@ def sample_orientation_aware(vertices: np.ndarray, faces: np.ndarray, normals: n
     if abs(len(keep) - target) > 0.1 * target:
         warnings.warn(f"orientation-aware sampling gave {len(keep)} nodes for a target of {target}: "
                       f"the surface does not hold more", stacklevel=2)
-    return points[keep] + vertices.min(axis=0), point_normals[keep], float(r)
+    return points[keep] + lowest, point_normals[keep], float(r)

@@ -8,7 +8,7 @@ away everywhere), that vertex falls back to Euclidean ranking.
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
+from numba import njit, prange
 
 from .distance import distance_5d
 
@@ -30,7 +30,7 @@ def _insert(best_d, best_i, d, i):
     best_i[p] = i
 
 
-@njit(cache=True)
+@njit(cache=True, parallel=True)
 def _weights(vertices, vnormals, nodes, nnormals, cell, dims, out_idx, out_w):
     n = nodes.shape[0]
     nx_, ny_, nz_ = dims[0], dims[1], dims[2]
@@ -46,71 +46,83 @@ def _weights(vertices, vnormals, nodes, nnormals, cell, dims, out_idx, out_w):
         nxt[a] = head[c]
         head[c] = a
     k1 = K + 1
-    best_d = np.empty(k1)
-    best_i = np.empty(k1, np.int64)
-    for v in range(vertices.shape[0]):
-        px, py, pz = vertices[v, 0], vertices[v, 1], vertices[v, 2]
-        vx, vy, vz = vnormals[v, 0], vnormals[v, 1], vnormals[v, 2]
+    nv = vertices.shape[0]
+    chunk = 4096
+    # chunks, not vertices, are the parallel unit: each owns its small sort buffers
+    for c0 in prange((nv + chunk - 1) // chunk):
+        best_d = np.empty(k1)
+        best_i = np.empty(k1, np.int64)
+        for v in range(c0 * chunk, min(nv, (c0 + 1) * chunk)):
+            _weights_one(v, vertices, vnormals, nodes, nnormals, cell, nx_, ny_, nz_, head, nxt, inv, best_d,
+                         best_i, out_idx, out_w)
+
+
+@njit(cache=True, inline="always")
+def _weights_one(v, vertices, vnormals, nodes, nnormals, cell, nx_, ny_, nz_, head, nxt, inv, best_d, best_i,
+                 out_idx, out_w):
+    n = nodes.shape[0]
+    px, py, pz = vertices[v, 0], vertices[v, 1], vertices[v, 2]
+    vx, vy, vz = vnormals[v, 0], vnormals[v, 1], vnormals[v, 2]
+    best_d[:] = np.inf
+    best_i[:] = -1
+    ci = min(max(int(px * inv), 0), nx_ - 1)
+    cj = min(max(int(py * inv), 0), ny_ - 1)
+    ck = min(max(int(pz * inv), 0), nz_ - 1)
+    for ring in range(0, 4):
+        for i in range(max(ci - ring, 0), min(ci + ring, nx_ - 1) + 1):
+            for j in range(max(cj - ring, 0), min(cj + ring, ny_ - 1) + 1):
+                for k in range(max(ck - ring, 0), min(ck + ring, nz_ - 1) + 1):
+                    if max(abs(i - ci), abs(j - cj), abs(k - ck)) != ring:
+                        continue  # inner cells were visited in earlier rings
+                    a = head[(i * ny_ + j) * nz_ + k]
+                    while a >= 0:
+                        dx = px - nodes[a, 0]
+                        dy = py - nodes[a, 1]
+                        dz = pz - nodes[a, 2]
+                        # D >= Euclidean: a node this far cannot enter the best k+1
+                        if dx * dx + dy * dy + dz * dz < best_d[K] * best_d[K]:
+                            d = distance_5d(px, py, pz, vx, vy, vz, nodes[a, 0], nodes[a, 1],
+                                            nodes[a, 2], nnormals[a, 0], nnormals[a, 1], nnormals[a, 2])
+                            _insert(best_d, best_i, d, a)
+                        a = nxt[a]
+        # every node within Euclidean ring * cell of the vertex has been seen
+        if best_d[K] <= ring * cell:
+            break
+    if not best_d[K] <= 3 * cell:
+        # sparse neighbourhood: rank every node by D, then fall back to Euclidean if D runs out
         best_d[:] = np.inf
         best_i[:] = -1
-        ci = min(max(int(px * inv), 0), nx_ - 1)
-        cj = min(max(int(py * inv), 0), ny_ - 1)
-        ck = min(max(int(pz * inv), 0), nz_ - 1)
-        for ring in range(0, 4):
-            for i in range(max(ci - ring, 0), min(ci + ring, nx_ - 1) + 1):
-                for j in range(max(cj - ring, 0), min(cj + ring, ny_ - 1) + 1):
-                    for k in range(max(ck - ring, 0), min(ck + ring, nz_ - 1) + 1):
-                        if max(abs(i - ci), abs(j - cj), abs(k - ck)) != ring:
-                            continue  # inner cells were visited in earlier rings
-                        a = head[(i * ny_ + j) * nz_ + k]
-                        while a >= 0:
-                            dx = px - nodes[a, 0]
-                            dy = py - nodes[a, 1]
-                            dz = pz - nodes[a, 2]
-                            # D >= Euclidean: a node this far cannot enter the best k+1
-                            if dx * dx + dy * dy + dz * dz < best_d[K] * best_d[K]:
-                                d = distance_5d(px, py, pz, vx, vy, vz, nodes[a, 0], nodes[a, 1],
-                                                nodes[a, 2], nnormals[a, 0], nnormals[a, 1], nnormals[a, 2])
-                                _insert(best_d, best_i, d, a)
-                            a = nxt[a]
-            # every node within Euclidean ring * cell of the vertex has been seen
-            if best_d[K] <= ring * cell:
-                break
-        if not best_d[K] <= 3 * cell:
-            # sparse neighbourhood: rank every node by D, then fall back to Euclidean if D runs out
+        for a in range(n):
+            d = distance_5d(px, py, pz, vx, vy, vz, nodes[a, 0], nodes[a, 1], nodes[a, 2],
+                            nnormals[a, 0], nnormals[a, 1], nnormals[a, 2])
+            _insert(best_d, best_i, d, a)
+        if not np.isfinite(best_d[min(K, n - 1)]):
             best_d[:] = np.inf
             best_i[:] = -1
             for a in range(n):
-                d = distance_5d(px, py, pz, vx, vy, vz, nodes[a, 0], nodes[a, 1], nodes[a, 2],
-                                nnormals[a, 0], nnormals[a, 1], nnormals[a, 2])
-                _insert(best_d, best_i, d, a)
-            if not np.isfinite(best_d[min(K, n - 1)]):
-                best_d[:] = np.inf
-                best_i[:] = -1
-                for a in range(n):
-                    dx = px - nodes[a, 0]
-                    dy = py - nodes[a, 1]
-                    dz = pz - nodes[a, 2]
-                    _insert(best_d, best_i, np.sqrt(dx * dx + dy * dy + dz * dz), a)
-        dmax = best_d[K] if np.isfinite(best_d[K]) else best_d[min(K, n - 1)] * 1.5 + 1e-300
-        total = 0.0
+                dx = px - nodes[a, 0]
+                dy = py - nodes[a, 1]
+                dz = pz - nodes[a, 2]
+                _insert(best_d, best_i, np.sqrt(dx * dx + dy * dy + dz * dz), a)
+    dmax = best_d[K] if np.isfinite(best_d[K]) else best_d[min(K, n - 1)] * 1.5 + 1e-300
+    total = 0.0
+    for q in range(K):
+        if best_i[q] < 0:
+            out_idx[v, q] = best_i[0]
+            out_w[v, q] = 0.0
+            continue
+        out_idx[v, q] = best_i[q]
+        w = 1.0 - best_d[q] / dmax if dmax > 0 else 1.0
+        if w < 0.0:
+            w = 0.0
+        out_w[v, q] = w
+        total += w
+    if total > 0:
         for q in range(K):
-            if best_i[q] < 0:
-                out_idx[v, q] = best_i[0]
-                out_w[v, q] = 0.0
-                continue
-            out_idx[v, q] = best_i[q]
-            w = 1.0 - best_d[q] / dmax if dmax > 0 else 1.0
-            if w < 0.0:
-                w = 0.0
-            out_w[v, q] = w
-            total += w
-        if total > 0:
-            for q in range(K):
-                out_w[v, q] /= total
-        else:
-            for q in range(K):
-                out_w[v, q] = 1.0 / K if best_i[q] >= 0 else 0.0
+            out_w[v, q] /= total
+    else:
+        for q in range(K):
+            out_w[v, q] = 1.0 / K if best_i[q] >= 0 else 0.0
 
 
 def skinning_weights(vertices: np.ndarray, vertex_normals: np.ndarray, nodes: np.ndarray,
