@@ -101,7 +101,9 @@ async function single() {
     const initial = await state(page);
     result.initial = { meshId: initial.meshId, nodeCount: initial.nodeCount, vertices: initial.vertices.length };
     await startCamera(page, 'page');
-    await page.waitForTimeout(1500);
+    await page.keyboard.press('f'); // scale the mesh to the dancer and stand it where she stands
+    await until(page, () => window.kinetre.state().attachableJoints > 0, null, 30000)
+      .catch(() => log('page: no attachable joint highlighted'));
     const rigging = await state(page);
     result.rigging = { attachable: rigging.attachableJoints, tracked: rigging.trackedJoints };
     await possess(page, 'page');
@@ -126,6 +128,7 @@ async function single() {
     await download.saveAs(glbPath);
     result.glb = glbPath;
     result.take = (await state(page)).take;
+    result.downloads = await page.$$eval('#downloads a', (links) => links.map((a) => [a.textContent, a.getAttribute('download')]));
     log('take downloaded');
 
     await page.keyboard.press('r');
@@ -204,7 +207,40 @@ async function smoke() {
   }
 }
 
-const scenarios = { single, two, upload, smoke };
+async function sample() {
+  // before any camera: the sample mesh is there and the sample motion moves it
+  const browser = await launch(null);
+  try {
+    const page = await open(browser, 'page');
+    await until(page, () => window.kinetre.state().transformsSeen > 3, null, 60000);
+    const s = await state(page);
+    result.state = { meshName: s.meshName, nodeCount: s.nodeCount, users: s.users, cameraRunning: s.cameraRunning };
+    result.spread = spread(await watchVertices(page, 4));
+    await screenshot(page, 'studio-sample.png');
+  } finally {
+    await browser.close();
+  }
+}
+
+async function perf() {
+  // the sample motion drives the mesh; no camera, so the figure is the 3D page alone
+  const browser = await launch(null);
+  try {
+    const page = await open(browser, 'page');
+    await page.waitForTimeout(config.wait ?? 10000);
+    const s = await state(page);
+    result.perf = { fps: s.fps, renderMs: s.renderMs, updateMs: s.updateMs, transformsPerSecond: null,
+      latencyMs: s.latencyMs, viewport: '720x540' };
+    const seq0 = s.transformsSeen;
+    await page.waitForTimeout(5000);
+    result.perf.transformsPerSecond = ((await state(page)).transformsSeen - seq0) / 5;
+    await screenshot(page, 'studio-perf.png');
+  } finally {
+    await browser.close();
+  }
+}
+
+const scenarios = { single, two, upload, smoke, perf, sample };
 try {
   await scenarios[config.scenario]();
   result.ok = true;

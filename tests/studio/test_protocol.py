@@ -131,3 +131,52 @@ def test_unknown_subset_is_refused_with_the_known_names(studio, walk):
 
     message = run(go())
     assert "tail" in message and "left arm" in message
+
+
+def test_a_viewer_with_a_window_never_has_more_unacknowledged_messages(studio, walk):
+    async def go():
+        async with StudioClient(studio) as driver, StudioClient(studio) as viewer:
+            await viewer.send({"type": "subscribe", "skeletons": True, "window": 3})
+            await viewer.send({"type": "ack", "received": 3})  # welcome, state, rest pose
+            await driver.send(frame_message(1, walk[0]))
+            await driver.wait(lambda c: c.me() and c.me()["frames"] >= 1)
+            await driver.send({"type": "fit"})
+            await driver.send({"type": "possess"})
+            await driver.wait(lambda c: c.me()["possessing"], 60)
+            for i in range(1, 40):  # a stream of transforms and skeletons the viewer does not acknowledge
+                await driver.send(frame_message(i + 1, walk[i]))
+                await asyncio.sleep(0.02)
+            await asyncio.sleep(1.0)
+            stalled = len(viewer.messages) + viewer.transform_count
+            await viewer.send({"type": "ack", "received": stalled})
+            await viewer.wait(lambda c: len(c.messages) + c.transform_count > stalled, 30)
+            await driver.send(frame_message(100, walk[41]))
+            await asyncio.sleep(1.0)
+            return stalled, len(viewer.messages) + viewer.transform_count
+
+    stalled, resumed = run(go())
+    assert stalled <= 3 + 3  # the first three, then at most one window
+    assert stalled < resumed <= stalled + 3
+
+
+def test_tracking_loss_holds_the_last_pose(studio, walk):
+    lost = Skeleton(walk[0].model, np.full((20, 3), np.nan), np.zeros(20, bool))
+
+    async def go():
+        async with StudioClient(studio) as c:
+            await c.send(frame_message(1, walk[0]))
+            await c.wait(lambda c: c.me() and c.me()["frames"] >= 1)
+            await c.send({"type": "fit"})
+            await c.send({"type": "possess"})
+            await c.wait(lambda c: c.me()["possessing"], 60)
+            await c.send(frame_message(2, walk[20], t=2e12))
+            await c.wait(lambda c: c.transforms[2] == 2e12, 60)
+            held = c.matrices().copy()
+            await c.send(frame_message(3, lost, t=3e12))  # nobody in view
+            await c.wait(lambda c: c.transforms[2] == 3e12, 60)
+            return held, c.matrices().copy(), c.me()["possessing"]
+
+    held, after, possessing = run(go())
+    assert possessing
+    assert np.abs(held - np.eye(4)).max() > 0.01  # the pose was not the rest pose
+    np.testing.assert_allclose(after, held, atol=1e-6)

@@ -96,6 +96,10 @@ class ClientStats:
     malformed: int = 0
     last_seq: int = -1
     skeletons: bool = False  # forward other users' skeleton frames to this client
+    window: int = 0  # flow control: at most this many messages sent and not yet acknowledged (0 = off)
+    sent: int = 0
+    acked: int = 0
+    ack: asyncio.Event = field(default_factory=asyncio.Event)
 
 
 @dataclass
@@ -118,7 +122,7 @@ class Studio:
         stats = self.stats[client]
         try:
             msg = parse_message(text)
-            kind = msg["type"]; import sys; import time as _t; print("DBG", round(_t.time() % 1000, 2), client, kind, file=sys.stderr, flush=True)
+            kind = msg["type"]
             if kind == "skeleton":
                 seq, t, skeleton = parse_skeleton(msg)
                 stats.received += 1
@@ -144,6 +148,17 @@ class Studio:
                 await (self.start_sample() if msg.get("on") else self.stop_sample())
             elif kind == "subscribe":
                 stats.skeletons = bool(msg.get("skeletons"))
+                window = msg.get("window", 0)
+                if not isinstance(window, int) or not 0 <= window <= 256:
+                    raise ProtocolError(f"window must be an integer 0..256, got {window!r}")
+                stats.window = window
+                stats.ack.set()
+            elif kind == "ack":
+                received = msg.get("received")
+                if not isinstance(received, int) or received < 0:
+                    raise ProtocolError(f"ack needs 'received', a message count, got {received!r}")
+                stats.acked = max(stats.acked, min(received, stats.sent))
+                stats.ack.set()
             elif kind == "stats":
                 self.reply(client, {"type": "stats", "client": client, "received": stats.received,
                                     "malformed": stats.malformed, "last_seq": stats.last_seq})
@@ -281,19 +296,25 @@ def create_app(mesh_path: str | None = None, nodes: int = NODES, sample_motion: 
                                        "channel": f"kinetre.skeleton.{client}"}))
         await ws.send_text(json.dumps(studio.scene.state()))
         await ws.send_bytes(studio.scene.transforms_block())
+        stats.sent = 3
 
         async def send_loop() -> None:
-            # one sender per connection: a slow viewer only ever has the newest frame per subject waiting
+            # One sender per connection: a slow viewer only ever has the newest frame per subject waiting.
+            # With a window, it also never has more than `window` messages in the network buffers, which
+            # would otherwise hold seconds of stale frames for a page whose main thread is busy.
             while True:
+                while stats.window and stats.sent - stats.acked >= stats.window:
+                    stats.ack.clear()
+                    await stats.ack.wait()
                 frame = await sub.next()
                 if frame is None:
                     return
+                skeleton = frame.subject.startswith("kinetre.skeleton.")
+                if skeleton and (not stats.skeletons or frame.subject.endswith("." + client)):
+                    continue  # other users' skeletons only for viewers that asked; a page draws its own
+                stats.sent += 1  # counted before the await: an ack may arrive before the send returns
                 if frame.subject == TRANSFORMS:
                     await ws.send_bytes(frame.data)
-                elif frame.subject.startswith("kinetre.skeleton."):
-                    # other users' skeletons only for viewers that asked; a page draws its own itself
-                    if stats.skeletons and not frame.subject.endswith("." + client):
-                        await ws.send_text(frame.data.decode())
                 else:
                     await ws.send_text(frame.data.decode())
 

@@ -6,7 +6,9 @@ Client → server (WebSocket text, JSON objects with a "type"):
     {"type": "possess", "subset": str | [str] | null}   {"type": "release"}
     {"type": "subset", "subset": ...}   {"type": "place", "scale": s, "position": [3], "yaw": radians}
     {"type": "fit"}   {"type": "player", "on": bool}   {"type": "stats"}
-    {"type": "subscribe", "skeletons": bool}   (also receive the other users' skeleton frames)
+    {"type": "subscribe", "skeletons": bool, "window": int}   (also receive the other users' skeleton
+        frames; with window > 0 the server keeps at most that many messages unacknowledged)
+    {"type": "ack", "received": int}   (messages of any kind received so far, counting from the welcome)
 
 Server → client: JSON {"type": "welcome" | "state" | "skeleton" | "stats" | "error" | "progress", …}
 and binary transform blocks (little-endian):

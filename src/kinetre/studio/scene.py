@@ -159,8 +159,6 @@ class Scene:
             except ProtocolError:
                 return
         user = self.user(client)
-        if client != "sample":
-            import sys; print("SCENE", round(time.time() % 1000, 2), client, seq, file=sys.stderr, flush=True)
         if seq <= user.seq and user.frames:
             return  # late or duplicate frame: skip, never reorder
         user.latest, user.seq, user.t = skeleton, seq, t

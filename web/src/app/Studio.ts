@@ -84,7 +84,8 @@ export class Studio {
       onTransforms: (b) => this.onTransforms(b),
       onConnection: (open) => {
         this.connected = open;
-        if (open) this.socket.send({ type: 'subscribe', skeletons: true }); // draw the other users too
+        // draw the other users too; at most 4 messages in flight (see StudioSocket)
+        if (open) this.socket.send({ type: 'subscribe', skeletons: true, window: 4 });
         this.updateStatus();
       },
     });
@@ -99,8 +100,14 @@ export class Studio {
   // --- server messages ------------------------------------------------------------------------------
   private onMessage(m: ServerMessage): void {
     switch (m.type) {
-      case 'state':
+      case 'state': {
+        const was = this.possessing;
         this.state = m;
+        if (this.possessing !== was) {
+          this.panel.setMessage(this.possessing
+            ? 'you possess the mesh: move! (R or say “release” to let go)'
+            : 'released: the mesh is back at rest');
+        }
         this.placement.apply(m.placement);
         if (!this.graphMesh || this.graphMesh.data.id !== m.mesh.id) void this.loadMesh(m.mesh.id, m.mesh.url);
         this.panel.setActive('sample', this.sampleUser(), undefined);
@@ -108,6 +115,7 @@ export class Studio {
         this.panel.setActive('record', m.recording);
         this.updateStatus();
         break;
+      }
       case 'skeleton':
         this.onRemoteSkeleton(m);
         break;

@@ -25,7 +25,11 @@ export class StudioSocket {
       this.handlers.onConnection(false);
       if (!this.closed) setTimeout(() => this.connect(), 1000);
     };
+    let received = 0;
     ws.onmessage = (event: MessageEvent) => {
+      // acknowledge every message: the server keeps only a few in flight, so a busy page gets fresh
+      // frames instead of seconds of stale ones queued in network buffers
+      ws.send(JSON.stringify({ type: 'ack', received: ++received }));
       if (event.data instanceof ArrayBuffer) {
         const block = decodeTransforms(event.data);
         if (block) this.handlers.onTransforms(block);
