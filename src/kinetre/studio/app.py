@@ -364,16 +364,20 @@ def create_app(mesh_path: str | None = None, nodes: int = NODES, sample_motion: 
                              "error": job.error, "done": job.done,
                              "mesh": studio.scene.mesh_id if job.done and not job.error else None})
 
+    voice_decoder: dict = {}
+
     async def voice_post(request: Request) -> Response:
         client = request.query_params.get("client", "")
         data = await request.body()
+        from .voice import Recogniser, recognise
         try:
-            from .voice import recognise
-        except ImportError as exc:
-            return JSONResponse({"error": f"voice recognition is not installed ({exc}); "
-                                          "install kinetre[voice]"}, 503)
+            # one decoder for the studio's lifetime: loading it costs ~50 ms per utterance otherwise
+            if voice_decoder.get("recogniser") is None:
+                voice_decoder["recogniser"] = await asyncio.to_thread(Recogniser)
+        except KinetreError as exc:  # pocketsphinx missing: the page says how to install it
+            return JSONResponse({"error": str(exc)}, 503)
         try:
-            command = await asyncio.to_thread(recognise, data, 16000)
+            command = await asyncio.to_thread(recognise, data, 16000, recogniser=voice_decoder["recogniser"])
         except KinetreError as exc:
             return JSONResponse({"error": str(exc)}, 400)
         if command is None:
