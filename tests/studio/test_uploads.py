@@ -69,3 +69,27 @@ def test_a_good_mesh_replaces_the_scene_for_every_client(fresh_studio, data_dir)
     fractions = [f for _, f in stages]
     assert fractions == sorted(fractions) and fractions[-1] == 1.0
     assert transforms[4].shape[0] == state["mesh"]["nodes"]
+
+
+def test_scan_entry_turns_a_zip_of_rgbd_frames_into_the_mesh(fresh_studio, data_dir, tmp_path):
+    import zipfile
+    frames = data_dir / "rgbd" / "redwood_livingroom"
+    archive = tmp_path / "livingroom.zip"
+    with zipfile.ZipFile(archive, "w") as z:
+        for f in sorted(frames.rglob("*")):
+            if f.is_file() and f.suffix in (".jpg", ".png", ".json"):
+                z.write(f, f.relative_to(frames))
+    r = httpx.post(f"{fresh_studio}/api/mesh?name=livingroom.zip&voxel=0.03", content=archive.read_bytes())
+    assert r.status_code == 202
+    status, stages = follow(fresh_studio, r.json()["job"], timeout=600)
+    assert not status["error"] and status["mesh"] is not None, status
+    assert any(s.startswith("scanning") for s, _ in stages)
+    state = httpx.get(fresh_studio + "/api/state").json()
+    assert state["mesh"]["id"] == status["mesh"] and state["mesh"]["name"] == "livingroom.ply"
+
+
+def test_scan_entry_refuses_a_bad_zip_readably(fresh_studio):
+    r = httpx.post(f"{fresh_studio}/api/mesh?name=frames.zip", content=b"PK not really a zip")
+    status, _ = follow(fresh_studio, r.json()["job"])
+    assert status["stage"] == "failed" and "not a readable zip" in status["error"]
+    assert "/tmp" not in status["error"]

@@ -4,7 +4,9 @@
     WS   /ws                   capture clients and viewers (protocol.py)
     GET  /api/state            the scene state (JSON)
     GET  /api/mesh/{id}        the current mesh with its skinning data (JSON, base64 arrays)
-    POST /api/mesh?name=F      upload a mesh file (OBJ/PLY/STL/GLB…): a job that loads it and builds the graph
+    POST /api/mesh?name=F      upload a mesh file (OBJ/PLY/STL/GLB…): a job that loads it and builds the graph;
+                               a .zip of RGB-D frames (TUM or Redwood layout) is scanned into a mesh first
+                               (&segment=plane|none, &voxel=metres)
     GET  /api/jobs/{id}        a job's stage, progress fraction and readable error
     POST /api/voice?client=C   16 kHz mono WAV: recognised offline, "possess"/"release"/subset applied for C
     POST /api/record/start     start recording a take; /api/record/stop ends it and exports GLB, BVH, stream
@@ -193,7 +195,9 @@ class Studio:
             await self.scene.release(SAMPLE_CLIENT)
 
     # --- mesh uploads ----------------------------------------------------------------------------------
-    def start_job(self, name: str, data: bytes, loop: asyncio.AbstractEventLoop) -> Job:
+    def start_job(self, name: str, data: bytes, loop: asyncio.AbstractEventLoop,
+                  scan_options: dict | None = None) -> Job:
+        """Prepare an uploaded mesh in a worker thread; a .zip of RGB-D frames is scanned into one first."""
         job = Job(next(self._ids), name)
         self.jobs[job.id] = job
         folder = Path(tempfile.mkdtemp(prefix="kinetre-upload-"))
@@ -204,8 +208,14 @@ class Studio:
             job.stage, job.fraction = stage, fraction
 
         def work() -> None:
+            mesh_path = path
             try:
-                mesh, graph = prepare_mesh(str(path), self.nodes, progress=progress)
+                if path.suffix.lower() == ".zip":
+                    from ..scan.pipeline import scan_zip
+                    progress("scanning RGB-D frames", 0.05)
+                    result = scan_zip(path, folder / (path.stem + ".ply"), **(scan_options or {}))
+                    mesh_path = Path(result.mesh_path)
+                mesh, graph = prepare_mesh(str(mesh_path), self.nodes, progress=progress)
             except KinetreError as exc:
                 job.error = str(exc).replace(str(folder) + os.sep, "")
                 job.stage, job.done = "failed", True
@@ -219,7 +229,7 @@ class Studio:
 
             def swap() -> None:
                 self.player_off_for_new_mesh()
-                self.scene.set_mesh(mesh, graph, Path(name).name)
+                self.scene.set_mesh(mesh, graph, mesh_path.name if mesh_path != path else Path(name).name)
                 job.done = True
 
             loop.call_soon_threadsafe(swap)
@@ -353,7 +363,17 @@ def create_app(mesh_path: str | None = None, nodes: int = NODES, sample_motion: 
         if len(data) > MAX_UPLOAD:
             return JSONResponse({"error": f"{name}: {len(data) >> 20} MB is over the {MAX_UPLOAD >> 20} MB limit"},
                                 413)
-        job = studio.start_job(name, data, asyncio.get_running_loop())
+        scan_options = {}
+        if name.lower().endswith(".zip"):  # the "Scan" entry: RGB-D frames, segmented by plane by default
+            segment = request.query_params.get("segment", "plane")
+            if segment not in ("plane", "none"):
+                return JSONResponse({"error": f"{name}: segment must be 'plane' or 'none', got {segment!r}"}, 400)
+            try:
+                voxel = float(request.query_params.get("voxel", "0.01"))
+            except ValueError:
+                return JSONResponse({"error": f"{name}: voxel must be a number in metres"}, 400)
+            scan_options = {"segment": None if segment == "none" else segment, "voxel": voxel}
+        job = studio.start_job(name, data, asyncio.get_running_loop(), scan_options)
         return JSONResponse({"job": job.id}, 202)
 
     async def job_get(request: Request) -> Response:

@@ -2,6 +2,8 @@
 // server's preprocessing job (progress from the server) until the new mesh is ready or fails readably.
 
 export const MESH_EXTENSIONS = ['.obj', '.ply', '.stl', '.glb', '.gltf', '.off'];
+// A zip of RGB-D frames (TUM or Redwood layout) is the "Scan" entry: the server fuses it into a mesh first.
+export const SCAN_EXTENSIONS = ['.zip'];
 
 export interface UploadEvents {
   onProgress(label: string, fraction: number): void;
@@ -24,7 +26,7 @@ export class MeshUploader {
       const file = e.dataTransfer?.files[0];
       if (file) void this.upload(file);
     });
-    input.accept = MESH_EXTENSIONS.join(',');
+    input.accept = [...MESH_EXTENSIONS, ...SCAN_EXTENSIONS].join(',');
     input.addEventListener('change', () => {
       const file = input.files?.[0];
       if (file) void this.upload(file);
@@ -35,8 +37,9 @@ export class MeshUploader {
   async upload(file: File): Promise<void> {
     if (this.busy) return this.events.onError('a mesh is already being prepared');
     const ext = file.name.slice(file.name.lastIndexOf('.')).toLowerCase();
-    if (!MESH_EXTENSIONS.includes(ext) && !file.name.toLowerCase().endsWith('.gz')) {
-      return this.events.onError(`${file.name}: not a mesh file (expected ${MESH_EXTENSIONS.join(', ')})`);
+    if (!MESH_EXTENSIONS.includes(ext) && !SCAN_EXTENSIONS.includes(ext) && !file.name.toLowerCase().endsWith('.gz')) {
+      return this.events.onError(
+        `${file.name}: not a mesh file (expected ${MESH_EXTENSIONS.join(', ')}, or a .zip of RGB-D frames to scan)`);
     }
     this.busy = true;
     try {

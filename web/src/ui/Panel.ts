@@ -59,7 +59,7 @@ export class Panel {
       <div id="progress-row" hidden><progress id="progress" max="1" value="0"></progress> <span id="progress-label"></span></div>
       <div id="downloads"></div>
       <div id="message" role="status"></div>
-      <div class="hint">Drop an OBJ, PLY, STL or GLB anywhere on the page.</div>`;
+      <div class="hint">Drop an OBJ, PLY, STL or GLB anywhere on the page, or a .zip of RGB-D frames to scan an object (TUM or Redwood layout).</div>`;
     container.appendChild(this.root);
     const $ = <T extends HTMLElement>(id: string) => this.root.querySelector(`#${id}`) as T;
     this.status = $('status');
