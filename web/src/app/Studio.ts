@@ -292,7 +292,8 @@ export class Studio {
       if (this.state.solve_ms !== null) parts.push(`solve ${this.state.solve_ms.toFixed(1)} ms`);
     }
     if (this.camera.running) parts.push(this.trackingLost ? 'tracking lost: holding the pose' : `tracking ${this.trackedJoints}/20`);
-    parts.push(`${this.viewport.fps.toFixed(0)} fps`);
+    const fps = this.viewport.fps;
+    if (Number.isFinite(fps) && fps > 0) parts.push(`${fps.toFixed(0)} fps`);  // no "Infinity" before two frames
     this.panel.setStatus(parts.join(' · '));
   }
 }
