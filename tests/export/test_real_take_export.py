@@ -84,7 +84,7 @@ def test_spot_video(tmp_path, spot_take):
     video = np.frombuffer(raw, np.uint8).reshape(-1, 480, 640, 3).astype(np.int16)
     assert (np.abs(np.diff(video, axis=0)).mean(axis=(1, 2, 3)) > 0.05).all()
     Image.fromarray(video[12].astype(np.uint8)).save(tmp_path / "spot_12.png")
-    # the cow (grey: its OBJ names no texture, trimesh's placeholder is grey 100) covers part of the frame,
+    # the cow (grey: its OBJ names no texture, trimesh substitutes a plain grey 100) covers part of the frame,
     # darker than the sky and the lit ground
     assert (video[12].max(axis=2) < 110).mean() > 0.02
 
