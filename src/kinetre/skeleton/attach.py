@@ -196,7 +196,9 @@ def bone_rotations(bind: Skeleton, frame: Skeleton, reference: np.ndarray) -> np
 
     def unit(v):
         n = np.linalg.norm(v, axis=-1, keepdims=True)
-        return v / np.where(n > 1e-12, n, 1.0), n[..., 0] > 1e-12
+        ok = (n[..., 0] > 1e-12) & np.isfinite(n[..., 0])  # an untracked joint may sit at inf
+        with np.errstate(invalid="ignore"):
+            return np.where(ok[..., None], v / np.where(ok[..., None], n, 1.0), 0.0), ok
 
     u0, _ = unit(bind.positions[bones[:, 1]] - bind.positions[bones[:, 0]])
     u1, ok1 = unit(frame.positions[bones[:, 1]] - frame.positions[bones[:, 0]])
