@@ -5,9 +5,6 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 import kinetre
-from kinetre.deform.energy import EnergyWeights
-from kinetre.deform.normal_equations import NormalEquations
-from kinetre.deform.solver import GaussNewton
 from kinetre.skeleton.models import KINECT20, Skeleton
 
 MESHES = ["spot.obj", "armadillo.obj", "camelhead.off", "teapot.obj", "sphereWithHole.stl",

@@ -1,5 +1,4 @@
 """Gauss-Newton/LM: exact on rigid motions, monotone energy, tracking loss, rigidity on bridges."""
-import dataclasses
 
 import numpy as np
 import pytest

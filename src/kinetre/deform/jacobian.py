@@ -8,7 +8,7 @@ Rows follow the residual layouts of `energy.py`. These are the reference the fas
 from __future__ import annotations
 
 import numpy as np
-from scipy.sparse import coo_matrix
+from scipy.sparse import coo_matrix, csr_matrix
 
 from .constraints import PointConstraints
 
@@ -28,7 +28,7 @@ def _coo(rows, cols, vals, shape):
     return coo_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))), shape=shape).tocsr()
 
 
-def rotation_jacobian(R: np.ndarray) -> "csr_matrix":
+def rotation_jacobian(R: np.ndarray) -> csr_matrix:
     """d(Eq. 3 residuals)/dx: (6N, 12N). d(c_p·c_q)/dR[a, p] = R[a, q] and d/dR[a, q] = R[a, p]."""
     n = len(R)
     j = np.arange(n)
@@ -41,7 +41,7 @@ def rotation_jacobian(R: np.ndarray) -> "csr_matrix":
     return _coo(rows, cols, vals, (6 * n, 12 * n))
 
 
-def regularization_jacobian(g: np.ndarray, edges: np.ndarray) -> "csr_matrix":
+def regularization_jacobian(g: np.ndarray, edges: np.ndarray) -> csr_matrix:
     """d(Eq. 4 residuals)/dx: (6E, 12N), constant: dr_a/dR_j[a, b] = (g_k − g_j)_b, ±1 on t."""
     n = len(g)
     j = np.concatenate([edges[:, 0], edges[:, 1]])
@@ -59,7 +59,7 @@ def regularization_jacobian(g: np.ndarray, edges: np.ndarray) -> "csr_matrix":
     return _coo(rows, cols, vals, (3 * len(e), 12 * n))
 
 
-def constraint_jacobian(g: np.ndarray, constraints: PointConstraints) -> "csr_matrix":
+def constraint_jacobian(g: np.ndarray, constraints: PointConstraints) -> csr_matrix:
     """d(Eq. 5 residuals)/dx: (3L, 12N), constant: w_i (p − g_i)_b on R_i[a, b], w_i on t_i[a]."""
     n = len(g)
     p, idx, w = constraints.points, constraints.nodes, constraints.weights
@@ -78,7 +78,7 @@ def constraint_jacobian(g: np.ndarray, constraints: PointConstraints) -> "csr_ma
     return _coo(rows, cols, vals, (3 * len(p), 12 * n))
 
 
-def rigidity_jacobian(R: np.ndarray, g: np.ndarray, bridges: np.ndarray) -> "csr_matrix":
+def rigidity_jacobian(R: np.ndarray, g: np.ndarray, bridges: np.ndarray) -> csr_matrix:
     """d(Eq. 7 residuals)/dx: (12B, 12N).
 
     (R_kᵀ R_j)[a, b] = Σ_c R_k[c, a] R_j[c, b]: d/dR_j[c, b] = R_k[c, a], d/dR_k[c, a] = R_j[c, b];

@@ -1,8 +1,6 @@
 """`build_graph`: mesh → orientation-aware nodes → edges → bridges → skinning weights (SPEC §1)."""
 from __future__ import annotations
 
-import numpy as np
-
 from ..errors import BadGraphError
 from ..mesh.mesh import Mesh
 from .edges import bridge_edges, connect_components, knn_edges

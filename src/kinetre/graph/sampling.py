@@ -14,9 +14,6 @@ from numba import njit
 from ..errors import BadGraphError
 from .distance import distance_5d
 
-_HASH = (73856093, 19349663, 83492791)
-
-
 @njit(cache=True)
 def face_double_areas(vertices, faces):
     """(F,) float64: twice each triangle's area (|e1 × e2|), without (F, 3, 3) temporaries."""

@@ -89,12 +89,11 @@ def _carry(nodes: np.ndarray, candidates: np.ndarray, point: np.ndarray, neighbo
     and its graph neighbours (ours): carriers that are already coupled by E_reg add no new coupling
     to JᵀJ, which keeps the Cholesky factor ~2× sparser at the same tracking accuracy.
     """
+    d = np.linalg.norm(nodes[candidates] - point, axis=1)
     if neighbours is not None and len(candidates) > 1:
-        d = np.linalg.norm(nodes[candidates] - point, axis=1)
         first = candidates[np.argmin(d)]
         local = np.isin(candidates, neighbours[first]) | (candidates == first)
-        candidates = candidates[local]
-    d = np.linalg.norm(nodes[candidates] - point, axis=1)
+        candidates, d = candidates[local], d[local]
     order = np.argsort(d)
     take = order[:k]
     dmax = d[order[k]] if len(order) > k else d[take].max() * 1.5 + 1e-12
