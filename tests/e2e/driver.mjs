@@ -44,7 +44,9 @@ const state = (page) => page.evaluate(() => {
 });
 
 async function until(page, predicate, arg, timeout = 60000) {
-  await page.waitForFunction(predicate, arg, { timeout, polling: 250 });
+  // the predicate's truthy value, as seen at that moment (a later read may see the dancer moved on)
+  const handle = await page.waitForFunction(predicate, arg, { timeout, polling: 250 });
+  return handle.jsonValue();
 }
 
 function spread(samples) {
@@ -102,10 +104,10 @@ async function single() {
     result.initial = { meshId: initial.meshId, nodeCount: initial.nodeCount, vertices: initial.vertices.length };
     await startCamera(page, 'page');
     await page.keyboard.press('f'); // scale the mesh to the dancer and stand it where she stands
-    await until(page, () => window.kinetre.state().attachableJoints > 0, null, 30000)
-      .catch(() => log('page: no attachable joint highlighted'));
+    const attachable = await until(page, () => window.kinetre.state().attachableJoints, null, 30000)
+      .catch(() => { log('page: no attachable joint highlighted'); return 0; });
     const rigging = await state(page);
-    result.rigging = { attachable: rigging.attachableJoints, tracked: rigging.trackedJoints };
+    result.rigging = { attachable, tracked: rigging.trackedJoints };
     await possess(page, 'page');
     await screenshot(page, 'studio-possessed.png');
     const moving = await watchVertices(page, 6);
