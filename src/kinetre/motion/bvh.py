@@ -21,7 +21,7 @@ import numpy as np
 
 from ..errors import BadMotionError
 from ..skeleton.models import KINECT20, SkeletonModel
-from .source import Take
+from .take import Take
 
 _AXIS = {"x": 0, "y": 1, "z": 2}
 _CHUNK = 4096  # frames per forward-kinematics batch

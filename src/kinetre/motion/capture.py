@@ -17,7 +17,7 @@ from ..errors import BadMotionError
 from ..skeleton.mediapipe import FLIP, kinect_from_mediapipe, root_translation
 from ..skeleton.models import KINECT20, Skeleton
 from .filters import OneEuroFilter
-from .source import Take
+from .take import Take
 
 
 @dataclass(frozen=True)

@@ -19,7 +19,7 @@ from ..errors import BadMotionError
 from ..graph.graph import DeformationGraph
 from ..mesh.mesh import Mesh
 from ..skeleton.models import KINECT20, Skeleton
-from .source import Take
+from .take import Take
 
 
 @dataclass(frozen=True)

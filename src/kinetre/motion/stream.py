@@ -18,7 +18,7 @@ import numpy as np
 
 from ..errors import BadMotionError, BadSkeletonError
 from ..skeleton.models import MODELS, Skeleton, SkeletonModel
-from .source import Take
+from .take import Take
 
 FORMAT = "kinetre-take"
 VERSION = 1
