@@ -434,6 +434,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.set_defaults(func=cmd_studio)
 
     _add_scan(sub)
+    from .face.cli import add_face_parser
+    add_face_parser(sub)
     return parser
 
 

@@ -31,3 +31,7 @@ class BadScanError(KinetreError):
 
 class ExportError(KinetreError):
     """An export target cannot be written."""
+
+
+class BadFaceError(KinetreError):
+    """A face image, video or landmark file is unreadable, holds no face, or has the wrong landmarks."""

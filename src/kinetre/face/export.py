@@ -1,0 +1,90 @@
+"""A reconstructed face (one image or a video's frames) as a textured, animated glTF 2.0 file.
+
+* one mesh on the template's topology; TEXCOORD_0 are the first frame's landmark UVs and its camera frame
+  is the embedded texture (glTF UVs cannot be animated portably, so a video's face wears its first frame);
+  the material is unlit (KHR_materials_unlit): the photo already carries the lighting;
+* morph targets 0-4 are the caricatures (caricature.NAMES, named in `extras.targetNames`), at the weights
+  chosen, so a player can dial them afterwards;
+* a video adds one morph target per later frame (frame k − frame 0) and one animation whose weights
+  channel is one-hot per key with LINEAR interpolation: between two keys the player blends the two
+  frames' shapes, which is exactly linear interpolation of vertex positions. Morph-weight animation is
+  what three.js, Blender and Babylon all play.
+"""
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pygltflib as gl
+
+from ..errors import ExportError
+from ..export.gltf import _append
+from .caricature import NAMES, morph_targets
+from .reconstruct import CM, FaceFrame
+from .template import load_template
+
+
+def write_face_gltf(path, frames: list[FaceFrame], image: bytes, mime: str, fps: float,
+                    caricature: np.ndarray | None = None, name: str = "face") -> None:
+    """Write `frames` (reconstructed without morphs) as .glb/.gltf with `image` (encoded JPEG/PNG bytes)."""
+    path = Path(path)
+    if path.suffix.lower() not in (".glb", ".gltf"):
+        raise ExportError(f"{path}: a glTF file must end in .glb or .gltf")
+    if not frames:
+        raise ExportError(f"{path}: no face frames to write")
+    if not fps > 0:
+        raise ExportError(f"{path}: fps must be positive, got {fps}")
+    caricature = np.zeros(len(NAMES)) if caricature is None else np.asarray(caricature, dtype=float)
+    template = load_template()
+    base = frames[0].vertices.astype(np.float32)
+    doc = gl.GLTF2(asset=gl.Asset(generator="kinetre face", version="2.0"), scene=0,
+                   scenes=[gl.Scene(nodes=[0])], nodes=[gl.Node(mesh=0, name=name)],
+                   extensionsUsed=["KHR_materials_unlit"])
+    blob = bytearray()
+    vertex = gl.ARRAY_BUFFER
+    attrs = gl.Attributes(POSITION=_append(doc, blob, base, gl.VEC3, gl.FLOAT, minmax=True, target=vertex),
+                          TEXCOORD_0=_append(doc, blob, frames[0].uvs.astype(np.float32), gl.VEC2, gl.FLOAT,
+                                             target=vertex))
+    indices = _append(doc, blob, template.triangles.reshape(-1).astype(np.uint16), gl.SCALAR,
+                      gl.UNSIGNED_SHORT, target=gl.ELEMENT_ARRAY_BUFFER)
+    rotation = frames[0].anchor.rotation @ frames[0].turn
+    deltas = [CM * d @ rotation.T for d in morph_targets()] + [f.vertices - frames[0].vertices for f in frames[1:]]
+    targets = [{"POSITION": _append(doc, blob, d.astype(np.float32), gl.VEC3, gl.FLOAT, minmax=True,
+                                    target=vertex)} for d in deltas]
+    names = list(NAMES) + [f"frame {k}" for k in range(1, len(frames))]
+    doc.meshes = [gl.Mesh(name=name, primitives=[gl.Primitive(attributes=attrs, indices=indices, material=0,
+                                                              targets=targets)],
+                          weights=[float(w) for w in caricature] + [0.0] * (len(frames) - 1),
+                          extras={"targetNames": names})]
+    blob.extend(b"\0" * (-len(blob) % 4))
+    doc.bufferViews.append(gl.BufferView(buffer=0, byteOffset=len(blob), byteLength=len(image)))
+    blob.extend(image)
+    doc.images = [gl.Image(bufferView=len(doc.bufferViews) - 1, mimeType=mime)]
+    doc.samplers = [gl.Sampler(magFilter=gl.LINEAR, minFilter=gl.LINEAR, wrapS=gl.CLAMP_TO_EDGE,
+                               wrapT=gl.CLAMP_TO_EDGE)]
+    doc.textures = [gl.Texture(source=0, sampler=0)]
+    doc.materials = [gl.Material(name=name, doubleSided=True, extensions={"KHR_materials_unlit": {}},
+                                 pbrMetallicRoughness=gl.PbrMetallicRoughness(
+                                     baseColorTexture=gl.TextureInfo(index=0), metallicFactor=0.0))]
+    if len(frames) > 1:
+        n = len(frames)
+        times = (np.arange(n) / fps).astype(np.float32)
+        keys = np.zeros((n, len(NAMES) + n - 1), dtype=np.float32)
+        keys[:, : len(NAMES)] = caricature
+        keys[np.arange(1, n), len(NAMES) + np.arange(n - 1)] = 1.0
+        t_acc = _append(doc, blob, times, gl.SCALAR, gl.FLOAT, minmax=True)
+        w_acc = _append(doc, blob, keys.reshape(-1), gl.SCALAR, gl.FLOAT)
+        doc.animations = [gl.Animation(name=name, samplers=[gl.AnimationSampler(input=t_acc, output=w_acc,
+                                                                                 interpolation="LINEAR")],
+                                       channels=[gl.AnimationChannel(sampler=0, target=gl.AnimationChannelTarget(
+                                           node=0, path="weights"))])]
+    doc.buffers = [gl.Buffer(byteLength=len(blob))]
+    doc.set_binary_blob(bytes(blob))
+    try:
+        if path.suffix.lower() == ".glb":
+            doc.save_binary(str(path))
+        else:
+            doc.convert_buffers(gl.BufferFormat.DATAURI)
+            doc.save_json(str(path))
+    except OSError as e:
+        raise ExportError(f"{path}: cannot write ({e.strerror})") from None
