@@ -13,6 +13,8 @@ EPILOG = """examples:
   kinetre animate chair.obj --motion walk.bvh -o chair_walk.glb
   kinetre animate lamp.obj --motion walk.bvh --subset "HipCenter,right arm" -o lamp.mp4
   kinetre animate spot.obj --motion take.kinetre.jsonl --fit --yaw 90 -o spot.glb
+  kinetre animate horse.ply --motion Fox.glb#Walk -o horse.glb
+  kinetre info Fox.glb
   kinetre capture --video clip.mp4 -o take.kinetre.jsonl
   kinetre capture --camera 0 --seconds 10 -o take.kinetre.jsonl
   kinetre record walk.bvh -o walk.kinetre.jsonl
@@ -65,9 +67,14 @@ def _bar(total: int, desc: str, quiet: bool):
 
 
 def _load_motion(path: str, scale: float | None, as_kinect: bool = True):
+    from .motion.gltf import is_gltf
     from .motion.source import load_take
+    if is_gltf(path):
+        if scale is not None:
+            raise UsageError("--scale applies to BVH files only")
+        return load_take(path, as_kinect=as_kinect)
     if not path.lower().endswith(".bvh") and (scale is not None or not as_kinect):
-        raise UsageError("--scale and --own-skeleton apply to BVH files only")
+        raise UsageError("--scale and --own-skeleton apply to BVH and glTF files only")
     if path.lower().endswith(".bvh"):
         return load_take(path, scale=scale, as_kinect=as_kinect)
     return load_take(path)
@@ -115,7 +122,21 @@ def cmd_animate(args, stats: dict | None = None) -> int:
 
     graph = kinetre.build_graph(mesh, nodes=args.nodes, seed=args.seed)
     lap("graph")
-    placement = fit_take(take, mesh, args.bind_frame, fit_mesh=args.fit, yaw=args.yaw)
+    fit_mesh = args.fit == "mesh"
+    if take.model == kinetre.KINECT20:  # a person: face +Z, scale to height
+        if args.fit in ("height", "length"):
+            raise UsageError("--fit height|length applies to non-human skeletons (people are fitted by height)")
+        yaw = (args.yaw or 0.0) + (180.0 if args.flip else 0.0)
+        placement = fit_take(take, mesh, args.bind_frame, fit_mesh=fit_mesh, yaw=yaw)
+        notes: tuple[str, ...] = ()
+    else:  # any other skeleton: from the two shapes
+        from .motion.align import fit_shapes
+        shape = fit_shapes(take, mesh, args.bind_frame, fit=args.fit if args.fit in ("height", "length")
+                           else "auto", yaw=args.yaw or 0.0, flip=args.flip, fit_mesh=fit_mesh)
+        placement, notes = shape.placement, shape.notes
+        say(f"fitted from the shapes: front by {shape.front}, turned {shape.turn:.0f} deg, size ratios "
+            f"height {shape.ratios[0]:.3g} length {shape.ratios[1]:.3g}, {100 * shape.inside:.0f} % of the "
+            f"bones inside the mesh")
     placed = placement.take(take)
     solve_graph = placement.graph(graph)
     bind = placed.frame(args.bind_frame)
@@ -125,6 +146,8 @@ def cmd_animate(args, stats: dict | None = None) -> int:
     say(f"attached {len(joints)} joint(s) ({', '.join(joints) or 'none'}), {int((att.bone >= 0).sum())} bone "
         f"samples, {len(rig.nodes_used)} of {graph.node_count} nodes (mesh scaled by {placement.mesh_scale:.4g} "
         f"to the {bind.height:.2f} m skeleton)")
+    for note in notes + _attach_notes(take, rig, args.subset):
+        print(f"kinetre: poor match: {note}", file=sys.stderr)
     lap("attach")
 
     out_take = placed.transformed(placement.output_scale)
@@ -137,8 +160,8 @@ def cmd_animate(args, stats: dict | None = None) -> int:
                 poses.append(placement.output_pose(rig.solve(placed.frame(i))))
                 bar.update(1)
         lap("solve")
-        mesh_out = placement.mesh(mesh) if args.fit else mesh
-        graph_out = solve_graph if args.fit else graph
+        mesh_out = placement.mesh(mesh) if fit_mesh else mesh
+        graph_out = solve_graph if fit_mesh else graph
         if out_ext in (".glb", ".gltf"):
             from .export.gltf import write_gltf
             write_gltf(args.output, mesh_out, graph_out, poses, take.fps)
@@ -157,6 +180,18 @@ def cmd_animate(args, stats: dict | None = None) -> int:
     stages = ", ".join(f"{k[:-2]} {v:.1f}" for k, v in stats.items() if k.endswith("_s") and k != "total_s")
     say(f"wrote {args.output} ({len(take)} frames at {take.fps:g} fps; {stats['total_s']:.1f} s: {stages})")
     return 0
+
+
+def _attach_notes(take, rig, subset) -> tuple[str, ...]:
+    """Words for a poor attachment: few of the (wanted) joints within reach of the mesh."""
+    if subset:
+        return ()
+    wanted = len(take.model.joints)
+    got = len(rig.attached_joints[0])
+    if got >= 0.5 * wanted:
+        return ()
+    return (f"only {got} of {wanted} joints lie within reach of the mesh: try --yaw 90, --flip, "
+            f"--fit height|length or more --nodes",)
 
 
 def _write_skeleton(path: str, ext: str, take) -> None:
@@ -243,9 +278,32 @@ def cmd_info(args) -> int:
         _info_take(read_stream(path), "recorded take")
     elif low.endswith(VIDEO_EXTS):
         _info_video(path)
+    elif low.endswith((".glb", ".gltf")):
+        _info_gltf(path)
     else:
         _info_mesh(path)
     return 0
+
+
+def _info_gltf(path: str) -> None:
+    """A glTF: its mesh (if any) and its animations, each usable as `--motion FILE#NAME`."""
+    import kinetre
+    from .motion.gltf import animations, load_gltf
+    anims = animations(path)
+    try:
+        _info_mesh(path)
+    except kinetre.BadMeshError:
+        if not anims:
+            raise
+        print(f"{path}: glTF without a mesh")
+    if not anims:
+        print("  animations: none")
+        return
+    take = load_gltf(path, 0, as_kinect=False)
+    print(f"  skeleton: {len(take.model.joints)} joints ({', '.join(take.model.joints)})")
+    print(f"  animations ({len(anims)}), use as --motion {os.path.basename(path)}#NAME or #INDEX:")
+    for a in anims:
+        print(f"    #{a.index} {a.name}: {a.duration:.2f} s, {a.channels} channels")
 
 
 def _info_take(take, kind: str) -> None:
@@ -372,20 +430,25 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("animate", help="drive a mesh with a motion file and write glTF, BVH, video or a take",
                        epilog=EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("mesh", help="mesh file (.obj .ply .stl .off .glb .gltf, optionally .gz)")
-    p.add_argument("--motion", required=True, help="motion: .bvh, .kinetre.jsonl or a video")
+    p.add_argument("--motion", required=True,
+                   help="motion: .bvh, .kinetre.jsonl, a video, or a glTF animation (Fox.glb#Walk, Fox.glb#1)")
     p.add_argument("-o", "--output", required=True, help=f"output: {' '.join(ANIMATE_OUTPUTS)}")
     p.add_argument("--nodes", type=int, default=128, help="graph nodes (default 128)")
     p.add_argument("--seed", type=int, default=0, help="graph sampling seed (default 0)")
     p.add_argument("--subset", action="append", metavar="JOINTS",
                    help='joints that drive, e.g. "right arm" or "HipCenter,right arm" (repeatable)')
     p.add_argument("--bind-frame", type=int, default=0, help="frame used as the bind pose (default 0)")
-    p.add_argument("--fit", action="store_true",
-                   help="resize the mesh to the skeleton instead of the motion to the mesh")
+    p.add_argument("--fit", nargs="?", const="mesh", default=None, choices=("mesh", "height", "length"),
+                   help="--fit alone: resize the mesh to the skeleton instead of the motion to the mesh; "
+                        "--fit height|length: size a non-human source to the mesh by that extent")
     p.add_argument("--yaw", type=float, default=None,
-                   help="degrees about +Y the skeleton faces (default: the mesh front, +Z)")
+                   help="degrees about +Y the skeleton is turned (people: from the mesh front +Z; other "
+                        "skeletons: added to the facing found from the shapes)")
+    p.add_argument("--flip", action="store_true", help="turn the skeleton round (the fit took front for back)")
     p.add_argument("--scale", type=float, default=None, help="BVH: metres per file unit (default: guessed)")
     p.add_argument("--own-skeleton", action="store_true",
-                   help="BVH: drive the mesh by the file's own bones, not the Kinect-20 map (unmapped files always do)")
+                   help="BVH/glTF: drive the mesh by the file's own bones, not the Kinect-20 map (unmapped files "
+                        "always do)")
     p.add_argument("--fps", type=float, default=None, help="output frame rate (default: the take's, at most 30)")
     p.add_argument("--frames", default=None, metavar="START:END", help="use only these frames of the take")
     p.add_argument("--max-frames", type=int, default=None, help="stop after this many output frames")

@@ -7,12 +7,13 @@ import pytest
 
 import kinetre.motion.bvh
 import kinetre.motion.filters
+import kinetre.motion.gltf
 import kinetre.motion.source
 import kinetre.motion.stream
 import kinetre.motion.take
 
 
-@pytest.mark.parametrize("module", [kinetre.motion.bvh, kinetre.motion.filters, kinetre.motion.source,
+@pytest.mark.parametrize("module", [kinetre.motion.bvh, kinetre.motion.filters, kinetre.motion.gltf, kinetre.motion.source,
                                     kinetre.motion.stream, kinetre.motion.take])
 def test_docstring_examples(module):
     result = doctest.testmod(module, optionflags=doctest.NORMALIZE_WHITESPACE)

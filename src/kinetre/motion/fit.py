@@ -37,20 +37,24 @@ class Placement:
     output_scale : float
         Solve frame -> output file units: 1 / k (the mesh keeps its size, the motion is scaled to it)
         or 1 (`fit_mesh`: the mesh is resized to the skeleton).
+    skeleton_scale : float
+        The skeleton is scaled by this before the turn: 1 for people (the solve frame is their metres),
+        the source-to-mesh size ratio for other skeletons (`align.fit_shapes`).
     """
 
     mesh_scale: float
     rotation: np.ndarray
     translation: np.ndarray
     output_scale: float
+    skeleton_scale: float = 1.0
 
     def skeleton(self, frame: Skeleton) -> Skeleton:
         """A frame in the solve frame."""
-        return frame.transformed(1.0, self.rotation, self.translation)
+        return frame.transformed(self.skeleton_scale, self.rotation, self.translation)
 
     def take(self, take: Take) -> Take:
         """Every frame of a take in the solve frame."""
-        return take.transformed(1.0, self.rotation, self.translation)
+        return take.transformed(self.skeleton_scale, self.rotation, self.translation)
 
     def mesh(self, mesh: Mesh) -> Mesh:
         """The mesh in the solve frame (uniform scaling keeps its normals)."""

@@ -1,4 +1,4 @@
-"""A motion source is an interface: every source (BVH, recorded take, video) yields a `Take`.
+"""A motion source is an interface: every source (BVH, glTF animation, recorded take, video) yields a `Take`.
 
 A take is a whole clip of skeleton frames in one canonical frame: metres, +Y up, with a tracked mask.
 `load_take` picks the reader by file extension (a registry, as trimesh's loaders do).
@@ -13,6 +13,7 @@ import numpy as np
 from ..errors import BadMotionError
 from .bvh import load_bvh
 from .capture import capture_video
+from .gltf import load_gltf, split_animation
 from .stream import read_stream
 from .take import Take
 
@@ -22,14 +23,15 @@ __all__ = ["Take", "READERS", "load_take", "resample"]
 # Extension -> reader(path, **options); compound extensions are matched first.
 READERS = {".kinetre.jsonl": read_stream, ".jsonl": read_stream, ".bvh": load_bvh,
            ".mp4": capture_video, ".mov": capture_video, ".avi": capture_video, ".mkv": capture_video,
-           ".webm": capture_video}
-_TAKES_OPTIONS = {load_bvh}  # readers that accept keyword options
+           ".webm": capture_video, ".glb": load_gltf, ".gltf": load_gltf}
+_TAKES_OPTIONS = {load_bvh, load_gltf}  # readers that accept keyword options
 
 
 def load_take(path: str | os.PathLike, **options) -> Take:
-    """Read any motion file into a `Take`: BVH, a recorded `.kinetre.jsonl` stream, or a video.
+    """Read any motion file into a `Take`: BVH, a glTF animation, a recorded `.kinetre.jsonl` stream, or a video.
 
-    `options` go to the reader (for BVH: `scale`, `as_kinect`).
+    A glTF path may end in `#NAME` or `#INDEX` to pick the animation. `options` go to the reader (BVH:
+    `scale`, `as_kinect`; glTF: `animation`, `fps`, `as_kinect`).
 
     Examples
     --------
@@ -37,7 +39,7 @@ def load_take(path: str | os.PathLike, **options) -> Take:
     Traceback (most recent call last):
     kinetre.errors.BadMotionError: walk.fbx: unknown motion format (expected one of .kinetre.jsonl, ...)
     """
-    name = os.fspath(path).lower()
+    name = split_animation(path)[0].lower()
     for ext, reader in sorted(READERS.items(), key=lambda kv: -len(kv[0])):
         if name.endswith(ext):
             return reader(path, **options) if reader in _TAKES_OPTIONS else reader(path)

@@ -1,0 +1,420 @@
+"""Motion from a rigged glTF 2.0 file: one of its animations, evaluated per frame, as a `Take`.
+
+The skeleton is the file's own joint hierarchy (the skins' joints, any number, any names; without a skin,
+the animated nodes and their descendants). Per output frame every channel is sampled as glTF 2.0 §3.11
+says (STEP, LINEAR with quaternion slerp on the shortest arc, CUBICSPLINE Hermite with the in/out
+tangents scaled by the keyframe interval), each node's local matrix is T · R · S (or its `matrix`), and
+world matrices run down the whole node hierarchy, non-joint parents included; a joint's position is the
+translation of its world matrix. A joint's parent in the `SkeletonModel` is its nearest ancestor that is a
+joint. Human skeletons whose names cover Kinect-20's core joints (Mixamo and friends) are mapped to
+Kinect-20 as BVH files are, unless `as_kinect=False`.
+
+`path#NAME` or `path#INDEX` picks the animation (`split_animation`); without it, the first one.
+"""
+from __future__ import annotations
+
+import base64
+import math
+import os
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import BadMotionError
+from ..skeleton.models import KINECT20, SkeletonModel
+from .bvh import kinect_map, up_rotation
+from .take import Take
+
+GLTF_EXTS = (".glb", ".gltf")
+_DTYPES = {5120: np.int8, 5121: np.uint8, 5122: np.int16, 5123: np.uint16, 5125: np.uint32, 5126: np.float32}
+_WIDTH = {"SCALAR": 1, "VEC2": 2, "VEC3": 3, "VEC4": 4, "MAT2": 4, "MAT3": 9, "MAT4": 16}
+_PATHS = {"translation": 3, "rotation": 4, "scale": 3}
+
+
+@dataclass(frozen=True)
+class AnimationInfo:
+    """One animation of a glTF file: its index, name, duration (s), channel count and the nodes it moves."""
+
+    index: int
+    name: str
+    start: float
+    end: float
+    channels: int
+
+    @property
+    def duration(self) -> float:
+        return self.end - self.start
+
+
+def split_animation(ref: str | os.PathLike) -> tuple[str, str | None]:
+    """"Fox.glb#Walk" -> ("Fox.glb", "Walk"); a path without a fragment -> (path, None).
+
+    >>> split_animation("models/Fox.glb#1")
+    ('models/Fox.glb', '1')
+    >>> split_animation("walk.bvh")
+    ('walk.bvh', None)
+    """
+    ref = os.fspath(ref)
+    head, sep, frag = ref.rpartition("#")
+    if sep and head.lower().endswith(GLTF_EXTS):
+        return head, frag
+    return ref, None
+
+
+def is_gltf(ref: str | os.PathLike) -> bool:
+    return split_animation(ref)[0].lower().endswith(GLTF_EXTS)
+
+
+class _Document:
+    """A loaded glTF (pygltflib) with decoded buffers and accessors."""
+
+    def __init__(self, path: str):
+        import pygltflib as gl
+        self.path = path
+        if not os.path.isfile(path):
+            raise BadMotionError(f"{path}: no such file")
+        try:
+            self.doc = gl.GLTF2.load(path)
+        except Exception as e:  # pygltflib raises plain exceptions (JSON, struct) on a corrupt file
+            raise BadMotionError(f"{path}: not a readable glTF file ({e})") from None
+        if self.doc is None:
+            raise BadMotionError(f"{path}: not a readable glTF file")
+        self._buffers: dict[int, bytes] = {}
+
+    def buffer(self, index: int) -> bytes:
+        if index not in self._buffers:
+            buf = self.doc.buffers[index]
+            if buf.uri is None:
+                data = self.doc.binary_blob()
+            elif buf.uri.startswith("data:"):
+                data = base64.b64decode(buf.uri.split(",", 1)[1])
+            else:
+                try:
+                    data = (Path(self.path).parent / buf.uri).read_bytes()
+                except OSError as e:
+                    raise BadMotionError(f"{self.path}: buffer {buf.uri!r} cannot be read ({e.strerror})") from None
+            if data is None or len(data) < buf.byteLength:
+                raise BadMotionError(f"{self.path}: buffer {index} is shorter than its byteLength")
+            self._buffers[index] = data
+        return self._buffers[index]
+
+    def accessor(self, index: int) -> np.ndarray:
+        """(count, width) float64 values of an accessor (byteStride and normalized integers handled)."""
+        try:
+            a = self.doc.accessors[index]
+            if a.sparse is not None or a.bufferView is None:
+                raise BadMotionError(f"{self.path}: accessor {index} is sparse or has no data (not supported)")
+            bv = self.doc.bufferViews[a.bufferView]
+            dtype = np.dtype(_DTYPES[a.componentType]).newbyteorder("<")
+            width = _WIDTH[a.type]
+            item = dtype.itemsize * width
+            stride = bv.byteStride or item
+            start = (bv.byteOffset or 0) + (a.byteOffset or 0)
+            blob = np.frombuffer(self.buffer(bv.buffer), dtype=np.uint8)
+            span = stride * (a.count - 1) + item
+            if start + span > len(blob):
+                raise BadMotionError(f"{self.path}: accessor {index} runs past the end of its buffer")
+            rows = np.lib.stride_tricks.as_strided(blob[start:], shape=(a.count, item), strides=(stride, 1))
+            out = np.frombuffer(rows.copy().tobytes(), dtype=dtype).reshape(a.count, width).astype(np.float64)
+        except (IndexError, KeyError, TypeError) as e:
+            raise BadMotionError(f"{self.path}: accessor {index} is malformed ({e})") from None
+        if a.normalized and dtype.kind in "iu":
+            out = np.maximum(out / np.iinfo(dtype).max, -1.0)
+        if not np.isfinite(out).all():
+            raise BadMotionError(f"{self.path}: accessor {index} holds non-finite values")
+        return out
+
+
+def animations(path: str | os.PathLike) -> list[AnimationInfo]:
+    """The animations of a glTF file (empty when it has none)."""
+    d = _Document(os.fspath(path))
+    out = []
+    for i, anim in enumerate(d.doc.animations or []):
+        times = [d.accessor(anim.samplers[c.sampler].input) for c in anim.channels]
+        start = min((float(t.min()) for t in times if t.size), default=0.0)
+        end = max((float(t.max()) for t in times if t.size), default=0.0)
+        out.append(AnimationInfo(i, anim.name or f"animation {i}", start, end, len(anim.channels)))
+    return out
+
+
+def _pick(infos: list[AnimationInfo], which: str | int | None, path: str) -> AnimationInfo:
+    listing = ", ".join(f"{a.index} {a.name!r}" for a in infos)
+    if not infos:
+        raise BadMotionError(f"{path}: the file has no animations")
+    if which is None or which == "":
+        return infos[0]
+    text = str(which)
+    for a in infos:
+        if a.name == text:
+            return a
+    if text.lstrip("-").isdigit():
+        i = int(text)
+        if 0 <= i < len(infos):
+            return infos[i]
+        raise BadMotionError(f"{path}: no animation #{i} (it has {len(infos)}: {listing})")
+    raise BadMotionError(f"{path}: no animation named {text!r} (available: {listing})")
+
+
+# ---- the sampler (glTF 2.0 §3.11, Appendix C) -------------------------------------------------------
+
+def slerp(a: np.ndarray, b: np.ndarray, u: np.ndarray) -> np.ndarray:
+    """(N, 4) unit quaternions on the shortest arc from a (N, 4) to b (N, 4) at fractions u (N,)."""
+    dot = np.einsum("ni,ni->n", a, b)
+    b = np.where(dot[:, None] < 0, -b, b)
+    dot = np.abs(dot)
+    th = np.arccos(np.clip(dot, -1.0, 1.0))
+    s = np.sin(th)
+    near = s < 1e-6  # nearly equal: the linear blend is exact to rounding
+    wa = np.where(near, 1 - u, np.sin((1 - u) * th) / np.where(near, 1.0, s))
+    wb = np.where(near, u, np.sin(u * th) / np.where(near, 1.0, s))
+    q = wa[:, None] * a + wb[:, None] * b
+    return q / np.linalg.norm(q, axis=1, keepdims=True)
+
+
+def sample(times: np.ndarray, values: np.ndarray, interpolation: str, t: np.ndarray,
+           rotation: bool = False) -> np.ndarray:
+    """Evaluate one animation sampler at times t (F,): (F, n).
+
+    Parameters
+    ----------
+    times : (K,) float, strictly increasing keyframe times (seconds)
+    values : (K, n) float, or (3K, n) for CUBICSPLINE (in-tangent, value, out-tangent per key)
+    interpolation : "STEP", "LINEAR" or "CUBICSPLINE"
+    rotation : the values are unit quaternions (x, y, z, w): LINEAR slerps, the others renormalise
+
+    Before the first key the first value holds, after the last the last one (the spec's clamping).
+
+    >>> sample(np.array([0.0, 1.0]), np.array([[0.0], [2.0]]), "LINEAR", np.array([-1.0, 0.25, 3.0]))
+    array([[0. ],
+           [0.5],
+           [2. ]])
+    """
+    times = np.asarray(times, dtype=np.float64).ravel()
+    values = np.asarray(values, dtype=np.float64)
+    t = np.asarray(t, dtype=np.float64).ravel()
+    cubic = interpolation == "CUBICSPLINE"
+    if cubic:
+        a_in, v, b_out = values[0::3], values[1::3], values[2::3]
+    else:
+        v = values
+    k = np.clip(np.searchsorted(times, t, side="right") - 1, 0, len(times) - 1)
+    k1 = np.minimum(k + 1, len(times) - 1)
+    dt = times[k1] - times[k]
+    u = np.where(dt > 0, (t - times[k]) / np.where(dt > 0, dt, 1.0), 0.0)
+    u = np.clip(u, 0.0, 1.0)
+    if interpolation == "STEP":
+        out = v[k]
+    elif cubic:
+        u2, u3 = u * u, u * u * u
+        h00, h10 = 2 * u3 - 3 * u2 + 1, u3 - 2 * u2 + u
+        h01, h11 = -2 * u3 + 3 * u2, u3 - u2
+        out = (h00[:, None] * v[k] + (h10 * dt)[:, None] * b_out[k] + h01[:, None] * v[k1]
+               + (h11 * dt)[:, None] * a_in[k1])
+    elif rotation:
+        return slerp(v[k], v[k1], u)
+    else:
+        out = (1 - u)[:, None] * v[k] + u[:, None] * v[k1]
+    if rotation:
+        out = out / np.maximum(np.linalg.norm(out, axis=1, keepdims=True), 1e-12)
+    return out
+
+
+def quaternion_matrices(q: np.ndarray) -> np.ndarray:
+    """(N, 3, 3) rotation matrices of (N, 4) quaternions (x, y, z, w), normalised first."""
+    q = q / np.linalg.norm(q, axis=1, keepdims=True)
+    x, y, z, w = q.T
+    return np.stack([
+        np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)], axis=1),
+        np.stack([2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)], axis=1),
+        np.stack([2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)], axis=1),
+    ], axis=1)
+
+
+# ---- hierarchy ---------------------------------------------------------------------------------------
+
+def _node_order(doc, path: str) -> tuple[list[int], dict[int, int]]:
+    """Nodes parents-first (depth first from the roots) and each node's parent."""
+    parent: dict[int, int] = {}
+    for i, n in enumerate(doc.nodes):
+        for c in n.children or []:
+            if c in parent or not 0 <= c < len(doc.nodes) or c == i:
+                raise BadMotionError(f"{path}: node {c} has two parents or is out of range (not a tree)")
+            parent[c] = i
+    order, seen = [], set()
+    stack = [i for i in reversed(range(len(doc.nodes))) if i not in parent]
+    while stack:
+        i = stack.pop()
+        if i in seen:
+            raise BadMotionError(f"{path}: the node hierarchy has a cycle at node {i}")
+        seen.add(i)
+        order.append(i)
+        stack.extend(reversed(doc.nodes[i].children or []))
+    if len(order) != len(doc.nodes):
+        raise BadMotionError(f"{path}: the node hierarchy has a cycle")
+    return order, parent
+
+
+def world_matrices(d: _Document, anim_index: int | None, t: np.ndarray) -> np.ndarray:
+    """(F, N, 4, 4) world matrix of every node at times t (F,), animated by animation `anim_index`."""
+    doc = d.doc
+    f, n = len(t), len(doc.nodes)
+    trs = []
+    for node in doc.nodes:
+        trs.append([np.tile(np.array(node.translation if node.translation is not None else [0, 0, 0], float), (f, 1)),
+                    np.tile(np.array(node.rotation if node.rotation is not None else [0, 0, 0, 1], float), (f, 1)),
+                    np.tile(np.array(node.scale if node.scale is not None else [1, 1, 1], float), (f, 1))])
+    animated = set()
+    if anim_index is not None:
+        anim = doc.animations[anim_index]
+        for c in anim.channels:
+            target = c.target
+            if target is None or target.node is None or target.path not in _PATHS:
+                continue  # morph-target weights and extension targets move no joint
+            s = anim.samplers[c.sampler]
+            times = d.accessor(s.input)[:, 0]
+            values = d.accessor(s.output)
+            width = _PATHS[target.path]
+            interp = s.interpolation or "LINEAR"
+            need = len(times) * (3 if interp == "CUBICSPLINE" else 1)
+            if values.shape != (need, width) or interp not in ("STEP", "LINEAR", "CUBICSPLINE") or \
+                    len(times) == 0 or np.any(np.diff(times) <= 0):
+                raise BadMotionError(f"{d.path}: animation {anim_index} channel on node {target.node} "
+                                     f"({target.path}) has a malformed sampler")
+            slot = ("translation", "rotation", "scale").index(target.path)
+            trs[target.node][slot] = sample(times, values, interp, t, target.path == "rotation")
+            animated.add(target.node)
+    order, parent = _node_order(doc, d.path)
+    world = np.zeros((f, n, 4, 4))
+    for i in order:
+        node = doc.nodes[i]
+        if node.matrix is not None and i not in animated:
+            local = np.broadcast_to(np.array(node.matrix, float).reshape(4, 4).T, (f, 4, 4))
+        else:
+            tr, q, sc = trs[i]
+            local = np.zeros((f, 4, 4))
+            local[:, :3, :3] = quaternion_matrices(q) * sc[:, None, :]
+            local[:, :3, 3] = tr
+            local[:, 3, 3] = 1.0
+        world[:, i] = local if i not in parent else world[:, parent[i]] @ local
+    return world
+
+
+def skin_weights(d: _Document) -> dict[int, float]:
+    """Total skin weight per joint node over the skinned meshes (empty when no mesh is skinned)."""
+    doc, total = d.doc, {}
+    for node in doc.nodes:
+        if node.mesh is None or node.skin is None:
+            continue
+        joints = doc.skins[node.skin].joints or []
+        for prim in doc.meshes[node.mesh].primitives:
+            attrs = prim.attributes
+            if getattr(attrs, "JOINTS_0", None) is None or getattr(attrs, "WEIGHTS_0", None) is None:
+                continue
+            idx = d.accessor(attrs.JOINTS_0).astype(np.int64)
+            w = d.accessor(attrs.WEIGHTS_0)
+            if idx.shape != w.shape or idx.size and (idx.min() < 0 or idx.max() >= len(joints)):
+                raise BadMotionError(f"{d.path}: a skinned primitive's JOINTS_0 does not fit its skin")
+            sums = np.bincount(idx.ravel(), weights=w.ravel(), minlength=len(joints))
+            for j, s in zip(joints, sums):
+                total[j] = total.get(j, 0.0) + float(s)
+    return total
+
+
+def skeleton_nodes(d: _Document, anim_index: int | None) -> tuple[list[int], tuple[int, ...]]:
+    """The joint nodes (parents first) and each one's parent joint (nearest joint ancestor, -1 for none).
+
+    Joints are the union of the skins' joints; a file without skins uses the animated nodes and everything
+    below them. Handles above the body are left out: joints that move no vertex and have no ancestor that
+    does, but have descendants that do (Fox's `_rootJoint` on the ground): their bone to the hips would
+    otherwise pull on the belly.
+    """
+    doc = d.doc
+    order, parent = _node_order(doc, d.path)
+    joints = {j for s in doc.skins or [] for j in s.joints or []}
+    if not joints and anim_index is not None:
+        targets = {c.target.node for c in doc.animations[anim_index].channels
+                   if c.target is not None and c.target.node is not None}
+        for i in order:
+            if i in targets or parent.get(i) in joints:
+                joints.add(i)
+    weight = skin_weights(d)
+    if weight:
+        moved_below: dict[int, bool] = {}
+        for i in reversed(order):  # children before parents
+            moved_below[i] = any(weight.get(c, 0.0) > 0 or moved_below[c] for c in doc.nodes[i].children or [])
+        for i in order:
+            chain, p = [i], parent.get(i)
+            while p is not None:
+                chain.append(p)
+                p = parent.get(p)
+            if i in joints and moved_below[i] and all(weight.get(a, 0.0) <= 0 for a in chain):
+                joints.discard(i)
+    nodes = [i for i in order if i in joints]
+    if len(nodes) < 2:
+        raise BadMotionError(f"{d.path}: no skeleton (the file has {len(nodes)} joint node(s); need at least 2)")
+    index = {j: k for k, j in enumerate(nodes)}
+    parents = []
+    for j in nodes:
+        p = parent.get(j)
+        while p is not None and p not in index:
+            p = parent.get(p)
+        parents.append(-1 if p is None else index[p])
+    return nodes, tuple(parents)
+
+
+def _names(doc, nodes: list[int]) -> tuple[str, ...]:
+    names, seen = [], set()
+    for j in nodes:
+        base = doc.nodes[j].name or f"node{j}"
+        name, k = base, 2
+        while name in seen:  # a SkeletonModel needs unique names
+            name, k = f"{base}.{k}", k + 1
+        seen.add(name)
+        names.append(name)
+    return tuple(names)
+
+
+def load_gltf(path: str | os.PathLike, animation: str | int | None = None, fps: float = 30.0,
+              as_kinect: bool = True) -> Take:
+    """One animation of a glTF/GLB file as a `Take` (the file's units, which glTF defines as metres).
+
+    Parameters
+    ----------
+    path : "file.glb", or "file.glb#NAME" / "file.glb#INDEX" (the fragment picks the animation when
+        `animation` is None)
+    animation : name or index of the animation; default the first
+    fps : frames per second to sample the animation at (frame i at start + i / fps; the last key is
+        included when the duration is a whole number of frames)
+    as_kinect : map a human skeleton to Kinect-20 (as `load_bvh`); False keeps the file's own hierarchy
+
+    Raises
+    ------
+    BadMotionError
+        Missing or corrupt file, no animations, an unknown animation name or index (the message lists
+        the available ones), fewer than two joints, a malformed sampler.
+    """
+    path, frag = split_animation(path)
+    if animation is None:
+        animation = frag
+    if not (isinstance(fps, (int, float)) and math.isfinite(fps) and fps > 0):
+        raise BadMotionError(f"{path}: fps must be a positive number, got {fps!r}")
+    d = _Document(path)
+    info = _pick(animations(path), animation, path)
+    count = int(math.floor(info.duration * fps + 1e-6)) + 1
+    t = info.start + np.arange(count) / fps
+    nodes, parents = skeleton_nodes(d, info.index)
+    names = _names(d.doc, nodes)
+    positions = world_matrices(d, info.index, t)[:, nodes][..., :3, 3]
+    source = f"{path}#{info.name}"
+    mapping = kinect_map(names, parents) if as_kinect else None
+    if mapping is not None:
+        weights, _ = mapping
+        positions = np.einsum("kj,tjc->tkc", weights, positions)
+        rest = weights @ world_matrices(d, None, np.zeros(1))[0, nodes][:, :3, 3]
+        up = rest[KINECT20.index("Head")] - rest[KINECT20.index("HipCenter")]
+        positions = positions @ up_rotation(up).T
+        model = KINECT20
+    else:
+        model = SkeletonModel(f"gltf:{Path(path).stem}", names, parents)
+    return Take(model, positions, np.ones(positions.shape[:2], dtype=bool), float(fps), source)

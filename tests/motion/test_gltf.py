@@ -1,0 +1,113 @@
+"""glTF animations as takes: the sampler against a hand-made two-joint file with known keyframes, and Fox."""
+from __future__ import annotations
+
+import math
+import struct
+
+import numpy as np
+import pygltflib as gl
+import pytest
+
+from kinetre.errors import BadMotionError
+from kinetre.motion.gltf import animations, load_gltf, sample, slerp
+from kinetre.motion.source import load_take
+
+
+def _two_joints(path):
+    """base (non-joint: at x=1, scaled 2) -> A (at y=1; rotation LINEAR 0 -> 90 deg about Z over 1 s;
+    scale STEP 1 -> 3 at 0.5 s) -> B (translation CUBICSPLINE: (0,1,0) at both keys, tangents (1,0,0))."""
+    c, s = math.cos(math.pi / 4), math.sin(math.pi / 4)
+    arrays = [
+        (np.array([0.0, 1.0], np.float32), "SCALAR"),                                 # 0 rotation times
+        (np.array([[0, 0, 0, 1], [0, 0, s, c]], np.float32), "VEC4"),                 # 1 rotations
+        (np.array([0.0, 0.5], np.float32), "SCALAR"),                                 # 2 scale times
+        (np.array([[1, 1, 1], [3, 3, 3]], np.float32), "VEC3"),                       # 3 scales
+        (np.array([[9, 9, 9], [0, 1, 0], [1, 0, 0],                                   # 4 in, value, out
+                   [1, 0, 0], [0, 1, 0], [9, 9, 9]], np.float32), "VEC3"),
+    ]
+    blob, views, accessors = b"", [], []
+    for i, (a, kind) in enumerate(arrays):
+        views.append(gl.BufferView(buffer=0, byteOffset=len(blob), byteLength=a.nbytes))
+        accessors.append(gl.Accessor(bufferView=i, componentType=gl.FLOAT, count=len(a), type=kind,
+                                     min=[float(a.min())] if kind == "SCALAR" else None,
+                                     max=[float(a.max())] if kind == "SCALAR" else None))
+        blob += a.tobytes()
+    doc = gl.GLTF2(
+        scene=0, scenes=[gl.Scene(nodes=[0])],
+        nodes=[gl.Node(name="base", translation=[1, 0, 0], scale=[2, 2, 2], children=[1]),
+               gl.Node(name="A", translation=[0, 1, 0], children=[2]),
+               gl.Node(name="B", translation=[0, 1, 0])],
+        skins=[gl.Skin(joints=[1, 2])],
+        animations=[gl.Animation(name="bend", samplers=[
+            gl.AnimationSampler(input=0, output=1, interpolation="LINEAR"),
+            gl.AnimationSampler(input=2, output=3, interpolation="STEP"),
+            gl.AnimationSampler(input=0, output=4, interpolation="CUBICSPLINE")], channels=[
+            gl.AnimationChannel(sampler=0, target=gl.AnimationChannelTarget(node=1, path="rotation")),
+            gl.AnimationChannel(sampler=1, target=gl.AnimationChannelTarget(node=1, path="scale")),
+            gl.AnimationChannel(sampler=2, target=gl.AnimationChannelTarget(node=2, path="translation"))]),
+            gl.Animation(name="still", samplers=[gl.AnimationSampler(input=2, output=3, interpolation="STEP")],
+                         channels=[gl.AnimationChannel(sampler=0, target=gl.AnimationChannelTarget(
+                             node=2, path="scale"))])],
+        accessors=accessors, bufferViews=views, buffers=[gl.Buffer(byteLength=len(blob))])
+    doc.set_binary_blob(blob)
+    doc.save_binary(str(path))
+    return path
+
+
+def test_two_joint_file_matches_the_analytic_motion(tmp_path):
+    take = load_gltf(_two_joints(tmp_path / "two.glb"), "bend", fps=4.0)
+    assert take.model.joints == ("A", "B") and take.model.parents == (-1, 0)
+    assert len(take) == 5 and take.fps == 4.0 and take.source.endswith("two.glb#bend")
+    for i, t in enumerate(np.arange(5) / 4.0):
+        theta = math.pi / 2 * t                                  # slerp: uniform angle
+        scale = 1.0 if t < 0.5 else 3.0                          # STEP
+        h = 2 * t ** 3 - 3 * t ** 2 + t                          # Hermite h10 + h11 with both tangents (1, 0, 0)
+        local_b = scale * np.array([h, 1.0, 0.0])
+        rotated = np.array([local_b[0] * math.cos(theta) - local_b[1] * math.sin(theta),
+                            local_b[0] * math.sin(theta) + local_b[1] * math.cos(theta), 0.0])
+        a = np.array([1.0, 2.0, 0.0])                            # base (1,0,0) + 2 * (0,1,0)
+        np.testing.assert_allclose(take.positions[i, 0], a, atol=1e-6)
+        np.testing.assert_allclose(take.positions[i, 1], a + 2.0 * rotated, atol=1e-6)
+
+
+def test_animation_picked_by_name_index_fragment_and_listed(tmp_path):
+    path = _two_joints(tmp_path / "two.glb")
+    assert [(a.name, a.duration) for a in animations(path)] == [("bend", 1.0), ("still", 0.5)]
+    assert load_take(f"{path}#still").source.endswith("#still")
+    assert load_take(f"{path}#1").source.endswith("#still")
+    assert load_take(path).source.endswith("#bend")
+    with pytest.raises(BadMotionError, match=r"no animation named 'Walk' \(available: 0 'bend', 1 'still'\)"):
+        load_take(f"{path}#Walk")
+    with pytest.raises(BadMotionError, match="no animation #7"):
+        load_take(f"{path}#7")
+
+
+def test_sampler_clamps_and_slerps_the_short_way():
+    times = np.array([0.0, 2.0])
+    np.testing.assert_allclose(sample(times, np.array([[1.0], [3.0]]), "STEP", np.array([-1, 1.9, 2.0, 5])),
+                               [[1], [1], [3], [3]])
+    q0 = np.array([[0.0, 0.0, 0.0, 1.0]])
+    q1 = -np.array([[0.0, math.sin(0.5), 0.0, math.cos(0.5)]])   # the same 1 rad turn, negated
+    half = slerp(q0, q1, np.array([0.5]))
+    assert abs(abs(half[0, 3]) - math.cos(0.25)) < 1e-12          # half of 1 rad, not of 2*pi - 1
+
+
+def test_fox_walk_is_the_files_own_skeleton(data_dir):
+    take = load_take(data_dir / "avatars" / "Fox.glb#Walk")
+    assert take.model.name == "gltf:Fox" and len(take.model.joints) == 22  # the two ground handles left out
+    assert take.model.joints[0] == "b_Hip_01" and take.model.parents[0] == -1
+    head = take.model.index("b_Head_05")
+    assert take.model.joints[take.model.parents[head]] == "b_Neck_04"
+    feet = [take.model.index(n) for n in ("b_LeftFoot02_018", "b_RightFoot02_022")]
+    # a walk: the hind feet swing back and forth along the body (z), on the ground (y near 0)
+    assert np.ptp(take.positions[:, feet, 2], axis=0).min() > 15.0
+    assert take.positions[:, feet, 1].min() < 3.0
+
+
+def test_corrupt_and_animationless_files_are_named(tmp_path):
+    bad = tmp_path / "bad.glb"
+    bad.write_bytes(b"glTF" + struct.pack("<II", 2, 20) + b"\0" * 8)
+    with pytest.raises(BadMotionError, match="bad.glb"):
+        load_take(bad)
+    with pytest.raises(BadMotionError, match="no such file"):
+        load_take(tmp_path / "missing.glb#Walk")
