@@ -50,26 +50,43 @@ def bench_build_graph():
                   "seconds": round(time.perf_counter() - t, 3)})
 
 
-def bench_solve():
+# one record per design: the default (two-level PCG), the other preconditioners, and the exact reference
+DESIGNS = {
+    "pcg_two_level": SolverSettings(),
+    "pcg_coordinate": SolverSettings(preconditioner="coordinate"),
+    "pcg_block_jacobi": SolverSettings(preconditioner="block_jacobi"),
+    "exact_gn": SolverSettings(method="exact"),
+    "exact_reuse_factor": SolverSettings(method="exact", reuse_factor=True),
+}
+
+
+def bench_solve(node_counts=(128, 256, 512), designs=tuple(DESIGNS)):
     # a body built around the clip's first frame, so the skeleton is inside it as after "possess"
     take = load_bvh(DATA / "bvh" / "cmu_12_01_walk.bvh")
     frames = [take.frame(i) for i in range(0, len(take), 4)]  # 30 fps
     body = capsule_body(frames[0], radius=0.06)
     second = [f.transformed(translation=(0.03, 0.0, 0.02)) for f in frames[10:] + frames[:10]]
-    for nodes in (128, 256, 512):
+    for nodes in node_counts:
         graph = kinetre.build_graph(body, nodes=nodes)
         for skeletons in (1, 2):
-            for reuse in (False, True):
-                binds = [frames[0], second[0]][:skeletons]
-                rig = kinetre.attach(graph, binds, settings=SolverSettings(reuse_factor=reuse))
-                times, iters, facts = [], [], []
+            binds = [frames[0], second[0]][:skeletons]
+            reference_energy = None
+            for mode in ("exact_gn",) + tuple(d for d in designs if d != "exact_gn"):
+                rig = kinetre.attach(graph, binds, settings=DESIGNS[mode])
+                times, iters, facts, cgs, energies = [], [], [], [], []
                 for i in range(1, len(frames)):
                     cur = [frames[i], second[i]][:skeletons]
                     t = time.perf_counter()
                     rig.solve(cur)
                     times.append(time.perf_counter() - t)
-                    iters.append(rig.last_report.iterations)
-                    facts.append(rig.last_report.factorisations)
+                    rep = rig.last_report
+                    iters.append(rep.iterations), facts.append(rep.factorisations), cgs.append(rep.cg_iterations)
+                    energies.append(rep.energy)
+                energies = np.array(energies)
+                if mode == "exact_gn":
+                    reference_energy = energies
+                    if mode not in designs:
+                        continue
                 times = np.array(times[5:]) * 1e3  # after warm-up
                 it = np.array(iters[5:])
                 # the reference, one plain iteration from the same state on the same frame
@@ -80,17 +97,21 @@ def bench_solve():
                     x, dt = reference_iteration(graph, rig.constraints, q, ok.astype(float), x, EnergyWeights())
                     ref.append(dt * 1e3)
                 ms_iter = times.sum() / max(it.sum(), 1)
-                emit({"bench": "solve", "nodes": graph.node_count, "skeletons": skeletons,
-                      "mode": "reuse_factor" if reuse else "exact_gn",
-                      "constraints": rig.constraint_count, "frames": len(times),
+                rel = energies / reference_energy - 1.0  # each run warm-starts from its own poses
+                emit({"bench": "solve", "nodes": nodes, "graph_nodes": graph.node_count, "skeletons": skeletons,
+                      "mode": mode, "constraints": rig.constraint_count, "frames": len(times),
                       "ms_per_frame_median": round(float(np.median(times)), 3),
                       "ms_per_frame_p95": round(float(np.percentile(times, 95)), 3),
                       "iterations_mean": round(float(it.mean()), 2),
+                      "cg_iterations_mean": round(float(np.mean(cgs[5:])), 2),
                       "factorisations_mean": round(float(np.mean(facts[5:])), 2),
                       "ms_per_iter": round(float(ms_iter), 3),
                       "reference_ms_per_iter": round(float(np.median(ref)), 3),
+                      "speedup_vs_reference_iter": round(float(np.median(ref) / np.median(times)), 1),
                       "speedup_per_iter": round(float(np.median(ref) / ms_iter), 1),
-                      "backend": rig.solver.factor.backend})
+                      "energy_vs_exact_median": float(f"{np.median(rel):.2e}"),
+                      "energy_vs_exact_p95": float(f"{np.percentile(rel, 95):.2e}"),
+                      "backend": rig.solver.backend})
 
 
 def bench_skin():
@@ -118,4 +139,7 @@ def bench_skin():
 if __name__ == "__main__":
     which = sys.argv[1:] or ["build_graph", "solve", "skin"]
     for name in which:
-        globals()[f"bench_{name}"]()
+        if name.startswith("solve:"):  # e.g. solve:256 → one node count, every design
+            bench_solve(node_counts=tuple(int(n) for n in name[6:].split(",")))
+        else:
+            globals()[f"bench_{name}"]()

@@ -1,6 +1,9 @@
 """Gauss-Newton with Levenberg-Marquardt damping on the Eq. 8 energy, warm-started per frame.
 
-Each iteration solves (JᵀJ + λ diag(JᵀJ)) δ = −Jᵀr with the factorisation's symbolic analysis reused.
+Each iteration solves (JᵀJ + λ diag(JᵀJ)) δ = −Jᵀr. By default (`method="pcg"`) with a few conjugate
+gradient iterations preconditioned by the per-coordinate factor of the linear terms (`coordinate_split.py`,
+`krylov.py`): no factorisation per frame, only triangular solves on a 4N system. `method="exact"` solves
+with a sparse Cholesky of the full 12N system, its symbolic analysis reused (the reference).
 A step that does not lower E is rejected and λ grows, so E never increases. The loop stops after
 `max_iterations` steps, or as soon as an accepted step's decrease is negligible — checked before
 factoring again, so no factorisation is spent only to confirm convergence.
@@ -15,17 +18,43 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .coordinate_split import CoordinateSplit
 from .factor import NotPositiveDefinite, ReusedCholesky
+from .krylov import BLOCK_JACOBI, COORDINATE, TWO_LEVEL, from_coordinate_layout, local_blocks, node_factors, \
+    pcg, to_coordinate_layout
 from .normal_equations import NormalEquations
+
+PRECONDITIONERS = {"coordinate": COORDINATE, "block_jacobi": BLOCK_JACOBI, "two_level": TWO_LEVEL}
 
 
 @dataclass(frozen=True)
 class SolverSettings:
+    """How `Rig.solve` minimises E per frame.
+
+    method : "pcg" (default) or "exact" (sparse Cholesky of the full system, the reference)
+    preconditioner : for "pcg": "two_level" (K_σ, node blocks, K_σ), "coordinate" (K_σ only) or
+        "block_jacobi" (node blocks only); see `krylov.py`
+    cg_iterations, cg_tolerance : CG iterations per Gauss-Newton step at most, and the relative
+        residual that ends them earlier
+    reuse_factor : for "exact": keep the numeric factor while its steps keep lowering E
+    """
+
     max_iterations: int = 10
     relative_tolerance: float = 1e-3   # stop when an accepted step lowers E by less than this fraction
     initial_damping: float = 1e-6
     max_damping: float = 1e8
     reuse_factor: bool = False
+    method: str = "pcg"
+    preconditioner: str = "two_level"
+    cg_iterations: int = 4
+    cg_tolerance: float = 1e-2
+
+    def __post_init__(self):
+        if self.method not in ("pcg", "exact"):
+            raise ValueError(f"SolverSettings.method must be 'pcg' or 'exact', got {self.method!r}")
+        if self.preconditioner not in PRECONDITIONERS:
+            raise ValueError(f"SolverSettings.preconditioner must be one of {sorted(PRECONDITIONERS)}, "
+                             f"got {self.preconditioner!r}")
 
 
 @dataclass(frozen=True)
@@ -34,18 +63,26 @@ class SolveReport:
     energy: float
     iterations: int        # linear solves (steps tried)
     accepted: int          # accepted steps
-    factorisations: int    # numeric factorisations done
+    factorisations: int    # numeric factorisations done (of K_σ for "pcg", of JᵀJ for "exact")
     energies: tuple        # E after each accepted step, starting with the initial E
+    cg_iterations: int = 0  # conjugate-gradient iterations ("pcg")
 
 
 class GaussNewton:
-    """Solver state for one rig: the normal-equation pattern and its reused symbolic factor."""
+    """Solver state for one rig: the per-coordinate factor ("pcg") or the full pattern's symbolic
+    factor ("exact")."""
 
     def __init__(self, system: NormalEquations, settings: SolverSettings = SolverSettings(),
                  backend: str | None = None):
         self.system = system
         self.settings = settings
-        self.factor = ReusedCholesky(system.matrix(np.ones(len(system.indices))), backend)
+        self._backend = backend
+        self._factor = None
+        self.split = CoordinateSplit(system, backend) if settings.method == "pcg" else None
+        nodes = system.n // 12
+        self._rot = np.zeros((nodes, 9, 9))
+        self._rig = np.zeros((len(system.bridges), 18, 18))
+        self._node_fac = np.zeros((nodes, 12, 12))
         # Below this, residuals are at round-off level (1e-10 of the graph's size per residual).
         extent = float(np.ptp(system.b_con.reshape(-1, 3), axis=0).max()) if len(system.b_con) else 1.0
         rows = 6 * system.n // 12 + len(system.b_reg) + len(system.b_con)
@@ -56,6 +93,17 @@ class GaussNewton:
         self._diag = None
         self._lam = None
 
+    @property
+    def factor(self) -> ReusedCholesky:
+        """The full system's reused Cholesky ("exact"), analysed on first use."""
+        if self._factor is None:
+            self._factor = ReusedCholesky(self.system.matrix(np.ones(len(self.system.indices))), self._backend)
+        return self._factor
+
+    @property
+    def backend(self) -> str:
+        return self.split.backend if self.split is not None else self.factor.backend
+
     def _linear(self, active: np.ndarray) -> np.ndarray:
         key = active.tobytes()
         if key != self._active_key:
@@ -65,6 +113,9 @@ class GaussNewton:
         return self._linear_data
 
     def solve(self, x0: np.ndarray, targets: np.ndarray, active: np.ndarray) -> SolveReport:
+        """Minimise E from x0 (N, 12) for constraint targets (L, 3) scaled by `active` (L,)."""
+        if self.settings.method == "pcg":
+            return self._solve_pcg(x0, targets, active)
         s = self.settings
         sysm = self.system
         linear = self._linear(active)
@@ -143,3 +194,68 @@ class GaussNewton:
         self._lam = min(max(lam, s.initial_damping), 1e3)
         return SolveReport(x=x, energy=energy, iterations=iterations, accepted=accepted,
                            energies=tuple(energies), factorisations=factorisations)
+
+    def _solve_pcg(self, x0: np.ndarray, targets: np.ndarray, active: np.ndarray) -> SolveReport:
+        """The same damped Gauss-Newton loop, each step from a few preconditioned CG iterations."""
+        s = self.settings
+        sysm = self.system
+        w = sysm.weights
+        before = self.split.factorisations
+        k, fac = self.split.for_active(active)
+        kind = PRECONDITIONERS[s.preconditioner]
+        k_diag = np.repeat(k[2][self.split.diag_pos], 3)
+        x = x0.copy()
+        parts = sysm.residuals(x, targets, active)
+        energy = sysm.energy(parts)
+        energies = [energy]
+        lam = self._lam if self._lam is not None else s.initial_damping
+        nu = 2.0
+        iterations = accepted = cg_total = 0
+        rot, rig, bridges = self._rot, self._rig, sysm.bridges
+        while iterations < s.max_iterations and energy > self.energy_floor:
+            _, grad = sysm.system(x, parts, None, active)
+            gy = to_coordinate_layout(grad)
+            local_blocks(x[:, :9].reshape(-1, 3, 3), bridges, w.rot, w.rig, rot, rig)
+            diag = k_diag.copy().reshape(-1, 12)
+            diag[:, :9] += np.einsum("juu->ju", rot)
+            if len(bridges):
+                np.add.at(diag[:, :9], bridges[:, 0], np.einsum("euu->eu", rig[:, :9, :9]))
+                np.add.at(diag[:, :9], bridges[:, 1], np.einsum("euu->eu", rig[:, 9:, 9:]))
+            diag = np.maximum(diag.reshape(-1), 1e-9 * max(diag.max(), 1e-300))
+            if gy @ (gy / diag) <= 1e-2 * s.relative_tolerance * energy:
+                break
+            stepped = False
+            while iterations < s.max_iterations:
+                iterations += 1
+                damp = lam * diag
+                if kind != COORDINATE:
+                    node_factors(k[0], k[1], k[2], rot, rig, bridges, damp, self._node_fac)
+                dy, it = pcg(kind, fac, k[0], k[1], k[2], rot, rig, bridges, damp, self._node_fac, -gy,
+                             s.cg_iterations, s.cg_tolerance)
+                cg_total += it
+                predicted = -(gy @ dy)
+                if not predicted > 1e-3 * s.relative_tolerance * energy:
+                    break
+                x_new = x + from_coordinate_layout(dy)
+                parts_new = sysm.residuals(x_new, targets, active)
+                e_new = sysm.energy(parts_new)
+                if np.isfinite(e_new) and e_new < energy:
+                    decrease = energy - e_new
+                    rho = decrease / max(predicted, 1e-300)
+                    lam = max(lam * max(1.0 / 3.0, 1.0 - (2.0 * rho - 1.0) ** 3), 1e-12)
+                    nu = 2.0
+                    x, parts, energy = x_new, parts_new, e_new
+                    energies.append(energy)
+                    accepted += 1
+                    stepped = True
+                    break
+                lam = max(lam, 1e-6) * nu
+                nu *= 2.0
+                if lam > s.max_damping:
+                    break
+            if not stepped or decrease <= s.relative_tolerance * energies[-2]:
+                break
+        self._lam = min(max(lam, s.initial_damping), 1e3)
+        return SolveReport(x=x, energy=energy, iterations=iterations, accepted=accepted,
+                           energies=tuple(energies), factorisations=self.split.factorisations - before,
+                           cg_iterations=cg_total)

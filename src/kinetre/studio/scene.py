@@ -20,7 +20,6 @@ from ..errors import AttachError
 from ..graph.graph import DeformationGraph
 from ..mesh.mesh import Mesh
 from ..skeleton.models import Skeleton
-from ..deform.solver import SolverSettings
 from ..skeleton.rig import Rig, attach
 from ..skeleton.subsets import subset_mask
 from .channels import Channels, Frame
@@ -217,9 +216,7 @@ class Scene:
                 return
             binds = [self.users[c].bind for c in possessors]
             graph = self.graph
-            # live tracking keeps the Cholesky factor while its steps still lower E (see README)
-            self.rig = await asyncio.to_thread(attach, graph, binds if len(binds) > 1 else binds[0],
-                                               settings=SolverSettings(reuse_factor=True))
+            self.rig = await asyncio.to_thread(attach, graph, binds if len(binds) > 1 else binds[0])
             self.possessors = possessors
         self._dirty.set()
 

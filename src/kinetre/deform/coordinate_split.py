@@ -1,0 +1,146 @@
+"""The per-coordinate part K of JᵀJ, fixed per rig, and its sparse factor.
+
+In Sumner's parametrisation E_reg (Eq. 4), E_con (Eq. 5) and E_rig's translation gap (Eq. 7) are linear
+in (R, t) and act identically and separately on x, y and z: coordinate a of every residual involves only
+row a of each R_j and t_j[a], with the same coefficients for a = 0, 1, 2. So with per coordinate the 4N
+unknowns (R_j[a, :], t_j[a]),
+
+    JᵀJ = P · blockdiag(K, K, K) · Pᵀ + (E_rot node blocks) + (E_rig bridge blocks),
+
+and K (4N × 4N) depends only on the graph, the constraint carriers and the set of tracked constraints,
+never on the pose. We factor K_σ = K + σ I_R once per tracked set (σ on the R rows: the rotation
+average of E_rot's 9×9 block is exactly 2 w_rot I, E_rig's R_j-R_j block is w_rig I per bridge), and use
+it to precondition CG on the true Gauss-Newton system (`krylov.py`).
+"""
+from __future__ import annotations
+
+from collections import OrderedDict
+
+import numpy as np
+from scipy.sparse import csc_matrix, csr_matrix, identity
+
+from .normal_equations import NormalEquations, _positions, _scatter
+
+try:  # optional: the `cholmod` extra
+    from sksparse.cholmod import analyze
+except ImportError:  # pragma: no cover - exercised only without scikit-sparse
+    analyze = None
+
+
+def _coordinate_columns(nodes: int) -> np.ndarray:
+    """Columns of coordinate 0's unknowns in the solver layout, ordered 4 j + b: R_j[0, b], t_j[0]."""
+    return (12 * np.arange(nodes)[:, None] + np.array([0, 1, 2, 9])).reshape(-1)
+
+
+def _coordinate_rows(rows: int, stride: int, offset: int = 0) -> np.ndarray:
+    """Rows of coordinate 0 in a residual block laid out `stride` rows per item, x at `offset`."""
+    return stride * np.arange(rows // stride) + offset
+
+
+class CoordinateSplit:
+    """K per tracked set and the factor of K_σ, for one rig.
+
+    Attributes
+    ----------
+    nodes : int
+    sigma : (4N,) float64, the shift on K's diagonal (0 on the t rows)
+    factorisations : int, numeric factorisations of K_σ so far
+    """
+
+    CACHE = 4  # tracked sets kept factored: a flickering joint costs no refactorisation
+
+    def __init__(self, system: NormalEquations, backend: str | None = None):
+        nodes = system.n // 12
+        self.nodes = nodes
+        w = system.weights
+        cols = _coordinate_columns(nodes)
+        j_reg = system.j_reg[_coordinate_rows(system.j_reg.shape[0], 3)][:, cols]
+        j_con = system.j_con[_coordinate_rows(system.j_con.shape[0], 3)][:, cols]
+        bridges = system.bridges
+        k_const = w.reg * (j_reg.T @ j_reg)
+        if len(bridges):
+            j_gap = system.j_gap[_coordinate_rows(system.j_gap.shape[0], 3)][:, cols]
+            k_const = k_const + w.rig * (j_gap.T @ j_gap)
+        self.j_con = j_con.tocsr()
+        self.w_con = w.con
+        # σ: 2 w_rot (E_rot averaged over rotations) + w_rig per bridge at the node (its exact R_j-R_j block)
+        per_node = 2.0 * w.rot + w.rig * np.bincount(bridges.reshape(-1), minlength=nodes)
+        self.sigma = np.zeros((nodes, 4))
+        self.sigma[:, :3] = per_node[:, None]
+        self.sigma = self.sigma.reshape(-1)
+
+        def structural(m):
+            m = m.copy()
+            m.data = np.ones_like(m.data)
+            return m
+
+        pattern = (structural(k_const) + structural(j_con).T @ structural(j_con)
+                   + identity(4 * nodes, format="csr")).tocsc()
+        pattern.sort_indices()
+        self.indptr, self.indices = pattern.indptr.astype(np.int64), pattern.indices.astype(np.int64)
+        self.const_data = _scatter(self.indptr, self.indices, 4 * nodes, k_const)
+        self.diag_pos = _positions(self.indptr, self.indices, 4 * nodes, np.arange(4 * nodes), np.arange(4 * nodes))
+        self.shift_data = np.zeros(len(self.indices))
+        self.shift_data[self.diag_pos] = self.sigma
+        self.backend = backend or ("cholmod" if analyze is not None else "superlu")
+        if self.backend == "cholmod":
+            if analyze is None:
+                raise ImportError("scikit-sparse is not installed (pip install 'kinetre[cholmod]')")
+            self._symbolic = analyze(self._matrix(np.ones(len(self.indices))), mode="simplicial",
+                                     ordering_method="best")
+        self._cache: OrderedDict = OrderedDict()
+        self.factorisations = 0
+
+    def _matrix(self, data: np.ndarray) -> csc_matrix:
+        n = 4 * self.nodes
+        return csc_matrix((data, self.indices.astype(np.int32), self.indptr.astype(np.int32)), shape=(n, n))
+
+    def k_data(self, active: np.ndarray) -> np.ndarray:
+        """K's values on the pattern for the per-constraint scales `active` (L,)."""
+        s2 = np.asarray(active, dtype=np.float64) ** 2
+        m = self.j_con.T @ (self.j_con.multiply(s2[:, None]).tocsr())
+        return self.const_data + self.w_con * _scatter(self.indptr, self.indices, 4 * self.nodes, m)
+
+    def for_active(self, active: np.ndarray):
+        """(K as CSR arrays (indptr, indices, data), factor tuple for `krylov`) for this tracked set."""
+        key = np.asarray(active, dtype=np.float64).tobytes()
+        hit = self._cache.get(key)
+        if hit is not None:
+            self._cache.move_to_end(key)
+            return hit
+        data = self.k_data(active)
+        k = (self.indptr, self.indices, data)  # symmetric: CSC arrays are CSR arrays too
+        shifted = self._matrix(data + self.shift_data)
+        self.factorisations += 1
+        hit = (k, self._factor(shifted))
+        self._cache[key] = hit
+        if len(self._cache) > self.CACHE:
+            self._cache.popitem(last=False)
+        return hit
+
+    def _factor(self, matrix: csc_matrix):
+        """(Lp, Li, Lx, Up, Ui, Ux, row_perm, col_perm) with matrix[row_perm][:, col_perm] = L U."""
+        if self.backend == "cholmod":
+            f = self._symbolic.cholesky(matrix)
+            lower = f.L().tocsc()
+            perm = f.P().astype(np.int64)
+            upper = lower.T.tocsc()
+            row_perm = col_perm = perm
+        else:
+            from scipy.sparse.linalg import splu
+            lu = splu(matrix, permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0, options={"SymmetricMode": True})
+            lower, upper = lu.L.tocsc(), lu.U.tocsc()
+            row_perm = np.argsort(lu.perm_r).astype(np.int64)
+            col_perm = lu.perm_c.astype(np.int64)
+        lower.sort_indices()
+        upper.sort_indices()
+        return (lower.indptr.astype(np.int64), lower.indices.astype(np.int64), lower.data.astype(np.float64),
+                upper.indptr.astype(np.int64), upper.indices.astype(np.int64), upper.data.astype(np.float64),
+                row_perm, col_perm)
+
+
+def k_times(k, y: np.ndarray) -> np.ndarray:
+    """(K ⊗ I₃) y for a flat coordinate-layout vector y (a check of the split; the solver uses numba)."""
+    indptr, indices, data = k
+    n4 = len(indptr) - 1
+    return (csr_matrix((data, indices, indptr), shape=(n4, n4)) @ y.reshape(n4, 3)).reshape(-1)

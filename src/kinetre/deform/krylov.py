@@ -1,0 +1,304 @@
+"""Preconditioned conjugate gradients on the Gauss-Newton system, in numba.
+
+Vectors here use the *coordinate layout*: node j owns y[12 j : 12 j + 12] = [R_jᵀ row-major (9), t_j (3)],
+i.e. y[3 (4 j + b) + a] holds R_j[a, b] (b < 3) or t_j[a] (b = 3). Read as a (4N, 3) array, column a is
+coordinate a's 4N unknowns, so the linear terms act as K @ Y (`coordinate_split.py`). Node-local
+blocks (E_rot, Eq. 3) and bridge blocks (E_rig's R_kᵀR_j − I, Eq. 7) are dense and added on top:
+
+    H = (K ⊗ I₃) + blockdiag_j(B_rot,j) + Σ_bridges B_rig,e + λ diag(H).
+
+Preconditioners (see `precondition`): the coordinate solve S = (K + σ I_R)⁻¹ per coordinate (one sparse
+factor for the rig, three right-hand sides), exact per-node 12×12 blocks (block Jacobi), and their
+symmetric multiplicative combination S · B · S (two-level: the factor carries the graph-wide coupling,
+the node blocks the rotation stiffness the shift σ only averages; where that product loses
+definiteness, far from rotations, CG restarts with the additive S + B).
+"""
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+from .jacobian import ROT_PAIRS
+
+_ROT_P = np.array([p for p, _ in ROT_PAIRS], dtype=np.int64)
+_ROT_Q = np.array([q for _, q in ROT_PAIRS], dtype=np.int64)
+
+COORDINATE, BLOCK_JACOBI, TWO_LEVEL, ADDITIVE = 0, 1, 2, 3
+
+
+def to_coordinate_layout(v: np.ndarray) -> np.ndarray:
+    """(N, 12) solver layout [R row-major, t] → flat coordinate layout [Rᵀ row-major, t]."""
+    v = v.reshape(-1, 12)
+    out = np.empty_like(v)
+    out[:, :9] = v[:, :9].reshape(-1, 3, 3).transpose(0, 2, 1).reshape(-1, 9)
+    out[:, 9:] = v[:, 9:]
+    return out.reshape(-1)
+
+
+def from_coordinate_layout(y: np.ndarray) -> np.ndarray:
+    """Inverse of `to_coordinate_layout`, returning (N, 12)."""
+    return to_coordinate_layout(y).reshape(-1, 12)  # transposing the R part is its own inverse
+
+
+@njit(cache=True)
+def local_blocks(R, bridges, w_rot, w_rig, rot_out, rig_out):
+    """Gauss-Newton blocks JᵀJ of E_rot per node (N, 9, 9) and of E_rig's R_kᵀR_j − I per bridge
+    (B, 18, 18, [R_j | R_k]), in the coordinate layout (R entry (a, b) at 3 b + a)."""
+    jac = np.zeros((6, 9))
+    for j in range(R.shape[0]):
+        jac[:] = 0.0
+        for r in range(6):
+            p = _ROT_P[r]
+            q = _ROT_Q[r]
+            for a in range(3):
+                jac[r, 3 * p + a] += R[j, a, q]
+                jac[r, 3 * q + a] += R[j, a, p]
+        for u in range(9):
+            for v in range(u, 9):
+                s = 0.0
+                for r in range(6):
+                    s += jac[r, u] * jac[r, v]
+                rot_out[j, u, v] = w_rot * s
+                rot_out[j, v, u] = w_rot * s
+    jr = np.zeros((9, 18))
+    for e in range(bridges.shape[0]):
+        j = bridges[e, 0]
+        k = bridges[e, 1]
+        jr[:] = 0.0
+        for a in range(3):
+            for b in range(3):
+                for c in range(3):
+                    jr[3 * a + b, 3 * b + c] += R[k, c, a]       # d/dR_j[c, b]
+                    jr[3 * a + b, 9 + 3 * a + c] += R[j, c, b]   # d/dR_k[c, a]
+        for u in range(18):
+            for v in range(u, 18):
+                s = 0.0
+                for r in range(9):
+                    s += jr[r, u] * jr[r, v]
+                rig_out[e, u, v] = w_rig * s
+                rig_out[e, v, u] = w_rig * s
+
+
+@njit(cache=True)
+def _hessian_times(kp, ki, kx, rot, rig, bridges, damp, y, out):
+    """out = H y (see the module docstring)."""
+    n4 = kp.shape[0] - 1
+    for i in range(n4):
+        s0 = 0.0
+        s1 = 0.0
+        s2 = 0.0
+        for p in range(kp[i], kp[i + 1]):
+            c = 3 * ki[p]
+            w = kx[p]
+            s0 += w * y[c]
+            s1 += w * y[c + 1]
+            s2 += w * y[c + 2]
+        out[3 * i] = s0 + damp[3 * i] * y[3 * i]
+        out[3 * i + 1] = s1 + damp[3 * i + 1] * y[3 * i + 1]
+        out[3 * i + 2] = s2 + damp[3 * i + 2] * y[3 * i + 2]
+    for j in range(rot.shape[0]):
+        o = 12 * j
+        for u in range(9):
+            s = 0.0
+            for v in range(9):
+                s += rot[j, u, v] * y[o + v]
+            out[o + u] += s
+    for e in range(bridges.shape[0]):
+        oj = 12 * bridges[e, 0]
+        ok = 12 * bridges[e, 1]
+        for u in range(18):
+            s = 0.0
+            for v in range(9):
+                s += rig[e, u, v] * y[oj + v] + rig[e, u, 9 + v] * y[ok + v]
+            if u < 9:
+                out[oj + u] += s
+            else:
+                out[ok + u - 9] += s
+
+
+@njit(cache=True)
+def node_factors(kp, ki, kx, rot, rig, bridges, damp, out):
+    """Cholesky factors (lower, in place in `out` (N, 12, 12)) of H's diagonal 12×12 node blocks."""
+    n = rot.shape[0]
+    out[:] = 0.0
+    for j in range(n):
+        for b in range(4):
+            i = 4 * j + b
+            for p in range(kp[i], kp[i + 1]):
+                c = ki[p]
+                if c // 4 != j:
+                    continue
+                bb = c - 4 * j
+                for a in range(3):
+                    out[j, 3 * b + a, 3 * bb + a] += kx[p]
+        for u in range(9):
+            for v in range(9):
+                out[j, u, v] += rot[j, u, v]
+        for u in range(12):
+            out[j, u, u] += damp[12 * j + u]
+    for e in range(bridges.shape[0]):
+        for s in range(2):
+            j = bridges[e, s]
+            for u in range(9):
+                for v in range(9):
+                    out[j, u, v] += rig[e, 9 * s + u, 9 * s + v]
+    for j in range(n):
+        a = out[j]
+        for c in range(12):
+            d = a[c, c]
+            for k in range(c):
+                d -= a[c, k] * a[c, k]
+            d = np.sqrt(d) if d > 0.0 else 1e-300
+            a[c, c] = d
+            for r in range(c + 1, 12):
+                s = a[r, c]
+                for k in range(c):
+                    s -= a[r, k] * a[c, k]
+                a[r, c] = s / d
+
+
+@njit(cache=True)
+def _node_solve(factors, r, out):
+    """out = blockdiag(node blocks)⁻¹ r with the factors of `node_factors`."""
+    z = np.empty(12)
+    for j in range(factors.shape[0]):
+        a = factors[j]
+        o = 12 * j
+        for c in range(12):
+            s = r[o + c]
+            for k in range(c):
+                s -= a[c, k] * z[k]
+            z[c] = s / a[c, c]
+        for c in range(11, -1, -1):
+            s = z[c]
+            for k in range(c + 1, 12):
+                s -= a[k, c] * z[k]
+            z[c] = s / a[c, c]
+            out[o + c] = z[c]
+
+
+@njit(cache=True)
+def _coordinate_solve(lp, li, lx, up, ui, ux, row_perm, col_perm, r, out, work):
+    """out = (K_σ ⊗ I₃)⁻¹ r with K_σ[row_perm][:, col_perm] = L U (L, U sparse CSC, sorted rows)."""
+    n4 = lp.shape[0] - 1
+    for k in range(n4):
+        i = 3 * row_perm[k]
+        work[3 * k] = r[i]
+        work[3 * k + 1] = r[i + 1]
+        work[3 * k + 2] = r[i + 2]
+    for c in range(n4):  # L: diagonal first in each column
+        d = lx[lp[c]]
+        y0 = work[3 * c] / d
+        y1 = work[3 * c + 1] / d
+        y2 = work[3 * c + 2] / d
+        work[3 * c] = y0
+        work[3 * c + 1] = y1
+        work[3 * c + 2] = y2
+        for p in range(lp[c] + 1, lp[c + 1]):
+            i = 3 * li[p]
+            w = lx[p]
+            work[i] -= w * y0
+            work[i + 1] -= w * y1
+            work[i + 2] -= w * y2
+    for c in range(n4 - 1, -1, -1):  # U: diagonal last in each column
+        d = ux[up[c + 1] - 1]
+        y0 = work[3 * c] / d
+        y1 = work[3 * c + 1] / d
+        y2 = work[3 * c + 2] / d
+        work[3 * c] = y0
+        work[3 * c + 1] = y1
+        work[3 * c + 2] = y2
+        for p in range(up[c], up[c + 1] - 1):
+            i = 3 * ui[p]
+            w = ux[p]
+            work[i] -= w * y0
+            work[i + 1] -= w * y1
+            work[i + 2] -= w * y2
+    for k in range(n4):
+        i = 3 * col_perm[k]
+        out[i] = work[3 * k]
+        out[i + 1] = work[3 * k + 1]
+        out[i + 2] = work[3 * k + 2]
+
+
+@njit(cache=True)
+def _precondition(kind, fac, kp, ki, kx, rot, rig, bridges, damp, node_fac, r, z, t1, t2, work):
+    """z = M⁻¹ r for the chosen preconditioner (t1, t2, work: scratch)."""
+    lp, li, lx, up, ui, ux, row_perm, col_perm = fac
+    if kind == BLOCK_JACOBI:
+        _node_solve(node_fac, r, z)
+        return
+    _coordinate_solve(lp, li, lx, up, ui, ux, row_perm, col_perm, r, z, work)
+    if kind == COORDINATE:
+        return
+    if kind == ADDITIVE:  # z = S r + B r: positive definite whatever the pose
+        _node_solve(node_fac, r, t2)
+        for i in range(r.shape[0]):
+            z[i] += t2[i]
+        return
+    # symmetric multiplicative: z ← z + B (r − H z), then z ← z + S (r − H z)
+    _hessian_times(kp, ki, kx, rot, rig, bridges, damp, z, t1)
+    for i in range(r.shape[0]):
+        t1[i] = r[i] - t1[i]
+    _node_solve(node_fac, t1, t2)
+    for i in range(r.shape[0]):
+        z[i] += t2[i]
+    _hessian_times(kp, ki, kx, rot, rig, bridges, damp, z, t1)
+    for i in range(r.shape[0]):
+        t1[i] = r[i] - t1[i]
+    _coordinate_solve(lp, li, lx, up, ui, ux, row_perm, col_perm, t1, t2, work)
+    for i in range(r.shape[0]):
+        z[i] += t2[i]
+
+
+@njit(cache=True)
+def pcg(kind, fac, kp, ki, kx, rot, rig, bridges, damp, node_fac, b, max_iterations, tolerance):
+    """Solve H x = b approximately from x = 0: stops after `max_iterations` or when ‖r‖ ≤ tolerance ‖b‖.
+
+    Returns (x, iterations). Every iterate lowers the quadratic model ½ xᵀHx − bᵀx, so even one
+    iteration is a descent direction for the energy.
+    """
+    n = b.shape[0]
+    x = np.zeros(n)
+    r = b.copy()
+    z = np.empty(n)
+    p = np.empty(n)
+    hp = np.empty(n)
+    t1 = np.empty(n)
+    t2 = np.empty(n)
+    work = np.empty(n)
+    bnorm = np.sqrt(b @ b)
+    if bnorm == 0.0:
+        return x, 0
+    _precondition(kind, fac, kp, ki, kx, rot, rig, bridges, damp, node_fac, r, z, t1, t2, work)
+    p[:] = z
+    rz = r @ z
+    it = 0
+    while it < max_iterations:
+        if not (rz > 0.0) and kind == TWO_LEVEL:
+            # far from rotations E_rot's blocks outgrow 2 (K + σ I) and the multiplicative form can lose
+            # definiteness: restart from x with the additive form, which cannot
+            kind = ADDITIVE
+            _precondition(kind, fac, kp, ki, kx, rot, rig, bridges, damp, node_fac, r, z, t1, t2, work)
+            p[:] = z
+            rz = r @ z
+        _hessian_times(kp, ki, kx, rot, rig, bridges, damp, p, hp)
+        php = p @ hp
+        if not (php > 0.0) or not (rz > 0.0):
+            break
+        alpha = rz / php
+        x += alpha * p
+        r -= alpha * hp
+        it += 1
+        if np.sqrt(r @ r) <= tolerance * bnorm or it >= max_iterations:
+            break
+        _precondition(kind, fac, kp, ki, kx, rot, rig, bridges, damp, node_fac, r, z, t1, t2, work)
+        rz_new = r @ z
+        if not (rz_new > 0.0):
+            rz = rz_new
+            continue
+        beta = rz_new / rz
+        rz = rz_new
+        p *= beta
+        p += z
+    return x, it
