@@ -30,6 +30,17 @@ def node_constraints(graph, node_ids):
     return PointConstraints(p, order[:, :4].astype(np.int32), w)
 
 
+def _bend(g):
+    top = np.flatnonzero(g.nodes[:, 1] > np.percentile(g.nodes[:, 1], 80))
+    bottom = np.flatnonzero(g.nodes[:, 1] < np.percentile(g.nodes[:, 1], 20))
+    cons = node_constraints(g, np.concatenate([top, bottom]))
+    rot = Rotation.from_euler("z", 40, degrees=True).as_matrix()
+    c = g.nodes.mean(axis=0)
+    targets = cons.points.copy()
+    targets[:len(top)] = (cons.points[:len(top)] - c) @ rot.T + c
+    return cons, targets
+
+
 @pytest.fixture(scope="module")
 def armadillo(data_dir):
     m = kinetre.load_mesh(data_dir / "meshes" / "armadillo.obj")
@@ -56,14 +67,7 @@ def test_rigid_motion_of_all_constraints_is_reproduced_exactly(armadillo, angles
 
 def test_energy_never_increases_and_converges_within_ten(armadillo):
     m, g = armadillo
-    top = np.flatnonzero(g.nodes[:, 1] > np.percentile(g.nodes[:, 1], 80))
-    bottom = np.flatnonzero(g.nodes[:, 1] < np.percentile(g.nodes[:, 1], 20))
-    cons = node_constraints(g, np.concatenate([top, bottom]))
-    # bend: the top turns 40° about z around the centre, the bottom stays
-    rot = Rotation.from_euler("z", 40, degrees=True).as_matrix()
-    c = g.nodes.mean(axis=0)
-    targets = cons.points.copy()
-    targets[:len(top)] = (cons.points[:len(top)] - c) @ rot.T + c
+    cons, targets = _bend(g)  # the top turns 40° about z around the centre, the bottom stays
     ne = NormalEquations.build(g.nodes, g.edges, g.edges[g.bridges], cons, EnergyWeights())
     rep = GaussNewton(ne).solve(identity_x(g.node_count), targets, np.ones(len(cons)))
     e = np.array(rep.energies)
@@ -160,17 +164,6 @@ def test_real_walk_converges_every_frame(data_dir):
 
 
 PCG_DESIGNS = [SolverSettings(preconditioner=p) for p in ("two_level", "coordinate", "block_jacobi")]
-
-
-def _bend(g):
-    top = np.flatnonzero(g.nodes[:, 1] > np.percentile(g.nodes[:, 1], 80))
-    bottom = np.flatnonzero(g.nodes[:, 1] < np.percentile(g.nodes[:, 1], 20))
-    cons = node_constraints(g, np.concatenate([top, bottom]))
-    rot = Rotation.from_euler("z", 40, degrees=True).as_matrix()
-    c = g.nodes.mean(axis=0)
-    targets = cons.points.copy()
-    targets[:len(top)] = (cons.points[:len(top)] - c) @ rot.T + c
-    return cons, targets
 
 
 def test_split_reproduces_the_full_gauss_newton_system(armadillo):
