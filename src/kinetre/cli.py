@@ -21,6 +21,7 @@ EPILOG = """examples:
   kinetre info walk.bvh
   kinetre graph spot.obj --nodes 128 -o spot_graph.ply
   kinetre studio spot.obj --port 8000
+  kinetre avatar CesiumMan.glb --motion walk.bvh -o cesium_walk.glb
 """
 
 MESH_EXTS = (".obj", ".ply", ".stl", ".off", ".glb", ".gltf")
@@ -499,6 +500,8 @@ def build_parser() -> argparse.ArgumentParser:
     _add_scan(sub)
     from .face.cli import add_face_parser
     add_face_parser(sub)
+    from .avatar.cli import add_avatar_parser
+    add_avatar_parser(sub)
     return parser
 
 

@@ -35,3 +35,7 @@ class ExportError(KinetreError):
 
 class BadFaceError(KinetreError):
     """A face image, video or landmark file is unreadable, holds no face, or has the wrong landmarks."""
+
+
+class BadAvatarError(KinetreError):
+    """An avatar file is not a rigged humanoid glTF/VRM, or its bones cannot be mapped to a body."""

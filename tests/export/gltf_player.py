@@ -17,9 +17,9 @@ _WIDTH = {"SCALAR": 1, "VEC2": 2, "VEC3": 3, "VEC4": 4, "MAT4": 16}
 
 
 class GltfPlayer:
-    """Skin the first skinned mesh of a .glb/.gltf at any time of its first animation."""
+    """Skin a skinned mesh primitive of a .glb/.gltf (by default the first) at any time of its first animation."""
 
-    def __init__(self, path):
+    def __init__(self, path, mesh_node: int | None = None, primitive: int = 0):
         path = Path(path)
         self.doc = gl.GLTF2.load(str(path))
         if path.suffix.lower() == ".glb":
@@ -28,8 +28,9 @@ class GltfPlayer:
             uri = self.doc.buffers[0].uri
             self.blob = base64.b64decode(uri.split(",", 1)[1])
         d = self.doc
-        self.mesh_node = next(i for i, n in enumerate(d.nodes) if n.skin is not None)
-        prim = d.meshes[d.nodes[self.mesh_node].mesh].primitives[0]
+        self.mesh_node = next(i for i, n in enumerate(d.nodes) if n.skin is not None) if mesh_node is None \
+            else mesh_node
+        prim = d.meshes[d.nodes[self.mesh_node].mesh].primitives[primitive]
         self.primitive = prim
         self.positions = self.accessor(prim.attributes.POSITION).astype(np.float64)
         self.joints = self.accessor(prim.attributes.JOINTS_0).astype(np.int64)

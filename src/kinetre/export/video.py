@@ -65,21 +65,9 @@ def write_video(path, mesh: Mesh, graph: DeformationGraph, poses: list[GraphPose
         missing, or ffmpeg failing (its last message is quoted).
     """
     path = Path(path)
-    ext = path.suffix.lower()
-    if ext not in _CODECS:
-        raise ExportError(f"{path}: a video must end in .mp4 or .webm, got {ext or 'no extension'!r}")
-    width, height = (int(s) for s in size)
-    if width <= 0 or height <= 0 or width % 2 or height % 2:
-        raise ExportError(f"{path}: video size must be two positive even numbers, got {tuple(size)}")
-    if not poses:
-        raise ExportError(f"{path}: the take has no frames to render")
-    if not np.isfinite(fps) or fps <= 0:
-        raise ExportError(f"{path}: fps must be a positive number, got {fps}")
+    width, height = check_video_target(path, size, fps, len(poses))
     if skeletons is not None and len(skeletons) != len(poses):
         raise ExportError(f"{path}: {len(skeletons)} skeleton frames for {len(poses)} poses")
-    ffmpeg = shutil.which("ffmpeg")
-    if ffmpeg is None:
-        raise ExportError(f"{path}: video export needs the ffmpeg command (Debian package ffmpeg)")
 
     try:
         lo, hi = take_bounds(mesh, graph, poses, skeletons)
@@ -96,31 +84,65 @@ def write_video(path, mesh: Mesh, graph: DeformationGraph, poses: list[GraphPose
     vertices, normals = mesh.vertices[keep], mesh.normals[keep]
     joints, weights = graph.vertex_nodes[keep], graph.vertex_weights[keep]
     renderer = MeshRenderer(len(keep), faces, camera, (width, height), uvs=uvs, colors=colors, texture=texture)
+
+    def frames():
+        try:
+            for k, pose in enumerate(poses):
+                m = pose.node_matrices(graph.nodes)
+                positions = skin_vertices(vertices, joints, weights, m)
+                m[:, :3, 3] = 0.0               # normals follow the blended linear part only
+                frame = renderer.render(positions, skin_vertices(normals, joints, weights, m))
+                if skeletons is not None and skeletons[k]:
+                    frame = draw_skeletons(frame, skeletons[k], camera)
+                yield frame
+                if on_frame is not None:
+                    on_frame(k)
+        finally:
+            renderer.release()
+
+    encode_video(path, frames(), fps, (width, height))
+
+
+def check_video_target(path: Path, size, fps: float, count: int) -> tuple[int, int]:
+    """Check the extension, an even frame size, fps and a frame count > 0; return (width, height)."""
+    if path.suffix.lower() not in _CODECS:
+        raise ExportError(f"{path}: a video must end in .mp4 or .webm, got {path.suffix.lower() or 'no extension'!r}")
+    width, height = (int(s) for s in size)
+    if width <= 0 or height <= 0 or width % 2 or height % 2:
+        raise ExportError(f"{path}: video size must be two positive even numbers, got {tuple(size)}")
+    if not count:
+        raise ExportError(f"{path}: the take has no frames to render")
+    if not np.isfinite(fps) or fps <= 0:
+        raise ExportError(f"{path}: fps must be a positive number, got {fps}")
+    if shutil.which("ffmpeg") is None:
+        raise ExportError(f"{path}: video export needs the ffmpeg command (Debian package ffmpeg)")
+    return width, height
+
+
+def encode_video(path, frames, fps: float, size: tuple[int, int]) -> None:
+    """Pipe (H, W, 3) uint8 RGB frames into ffmpeg, which encodes them by the extension (.mp4 H.264,
+    .webm VP9). `frames` is any iterable (a generator renders while ffmpeg encodes)."""
+    path = Path(path)
+    width, height = size
     rate = Fraction(fps).limit_denominator(1001)
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
     except OSError as err:
         raise ExportError(f"{path}: cannot create the folder for the video ({err.strerror or err})") from None
-    cmd = [ffmpeg, "-y", "-hide_banner", "-loglevel", "error", "-f", "rawvideo", "-pix_fmt", "rgb24",
-           "-s", f"{width}x{height}", "-framerate", f"{rate.numerator}/{rate.denominator}", "-i", "-",
-           *_CODECS[ext], "-r", f"{rate.numerator}/{rate.denominator}", str(path)]
+    cmd = [shutil.which("ffmpeg"), "-y", "-hide_banner", "-loglevel", "error", "-f", "rawvideo", "-pix_fmt",
+           "rgb24", "-s", f"{width}x{height}", "-framerate", f"{rate.numerator}/{rate.denominator}", "-i", "-",
+           *_CODECS[path.suffix.lower()], "-r", f"{rate.numerator}/{rate.denominator}", str(path)]
     proc = subprocess.Popen(cmd, stdin=subprocess.PIPE, stderr=subprocess.PIPE)
     try:
-        for k, pose in enumerate(poses):
-            m = pose.node_matrices(graph.nodes)
-            positions = skin_vertices(vertices, joints, weights, m)
-            m[:, :3, 3] = 0.0               # normals follow the blended linear part only
-            frame = renderer.render(positions, skin_vertices(normals, joints, weights, m))
-            if skeletons is not None and skeletons[k]:
-                frame = draw_skeletons(frame, skeletons[k], camera)
+        for frame in frames:
             proc.stdin.write(np.ascontiguousarray(frame).tobytes())
-            if on_frame is not None:
-                on_frame(k)
         proc.stdin.close()
     except BrokenPipeError:
         pass                                  # ffmpeg died: its message is reported below
     finally:
-        renderer.release()
+        close = getattr(frames, "close", None)
+        if close is not None:
+            close()                           # a generator's cleanup (the renderer) runs now
         if proc.stdin and not proc.stdin.closed:
             try:
                 proc.stdin.close()

@@ -1,0 +1,102 @@
+"""`kinetre avatar AVATAR.glb --motion walk.bvh -o out.glb|.gltf|.bvh|.mp4|.webm`
+
+Loads a rigged humanoid (glTF/GLB/VRM), maps its bones to Kinect-20 (a saved map next to it wins), retargets
+any motion source (BVH, recorded take, video) with Algorithm 1 and writes the avatar animated by its own
+joints. `--write-map` saves the automatic map as JSON next to the avatar for hand correction.
+"""
+from __future__ import annotations
+
+import argparse
+import os
+import time
+
+from ..errors import BadMotionError
+
+OUTPUTS = (".glb", ".gltf", ".bvh", ".mp4", ".webm")
+
+
+def add_avatar_parser(subparsers) -> argparse.ArgumentParser:
+    p = subparsers.add_parser(
+        "avatar", help="drive a rigged humanoid avatar (glTF/GLB/VRM) by its own bones with a motion",
+        description="Retarget a motion onto a rigged humanoid avatar (avateering, Algorithm 1) and write it "
+                    "animated by its own skeleton.")
+    p.add_argument("avatar", help="rigged humanoid: .glb, .gltf or .vrm")
+    p.add_argument("--motion", help="motion: .bvh, .kinetre.jsonl or a video")
+    p.add_argument("-o", "--output", help=f"output: {' '.join(OUTPUTS)}")
+    p.add_argument("--map", default=None, metavar="JSON",
+                   help="bone map to use (default: AVATAR.kinetre-map.json next to the avatar when present)")
+    p.add_argument("--write-map", nargs="?", const="", default=None, metavar="JSON",
+                   help="save the bone map (default: next to the avatar) for hand correction")
+    p.add_argument("--scale", type=float, default=None, help="BVH: metres per file unit (default: guessed)")
+    p.add_argument("--fps", type=float, default=None, help="output frame rate (default: the take's, at most 30)")
+    p.add_argument("--frames", default=None, metavar="START:END", help="use only these frames of the take")
+    p.add_argument("--max-frames", type=int, default=None, help="stop after this many output frames")
+    p.add_argument("-q", "--quiet", action="store_true", help="no summary")
+    p.set_defaults(func=cmd_avatar)
+    return p
+
+
+def kinect_take(take):
+    """A take on Kinect-20 (OpenNI-17 takes converted); other skeletons cannot drive a humanoid."""
+    from ..motion.source import Take
+    from ..skeleton.models import KINECT20
+    from .bonemap import kinect_from_openni
+    if take.model.name == "kinect20":
+        return take
+    if take.model.name == "openni17":
+        pos, tracked = kinect_from_openni(take.positions, take.tracked)
+        return Take(KINECT20, pos, tracked, take.fps, take.source)
+    raise BadMotionError(f"{take.source}: its skeleton ({take.model.name}) has no Kinect-20 map, so it cannot "
+                         "drive a humanoid avatar (name the joints like Mixamo/CMU/Kinect)")
+
+
+def cmd_avatar(args) -> int:
+    from ..cli import UsageError, _ext, _frames, _load_motion, _quiet_mediapipe
+    from ..motion.source import resample
+    from .bonemap import describe, map_bones, map_path, write_map
+    from .load import load_avatar
+    from .retarget import plan_retarget, retarget
+
+    say = (lambda *a: None) if args.quiet else print
+    t0 = time.perf_counter()
+    if args.motion is None and args.write_map is None:
+        raise UsageError("kinetre avatar needs --motion (and -o), or --write-map")
+    if args.motion is not None and not args.output:
+        raise UsageError("kinetre avatar --motion needs -o OUTPUT")
+    out_ext = _ext(args.output, OUTPUTS) if args.output else None
+    if args.map is not None and not os.path.exists(args.map):
+        raise UsageError(f"{args.map}: no such bone map")
+    avatar = load_avatar(args.avatar)
+    bonemap = map_bones(avatar, args.map)
+    say(f"avatar {args.avatar}: {len(avatar.joints)} joints, {avatar.vertex_count} vertices in "
+        f"{len(avatar.primitives)} primitive(s)")
+    say(f"bone map: {describe(avatar, bonemap)}")
+    if args.write_map is not None:
+        target = args.write_map or map_path(args.avatar)
+        write_map(target, avatar, bonemap.joints)
+        say(f"wrote {target}")
+    if args.motion is None:
+        return 0
+
+    if args.motion.lower().endswith((".mp4", ".mov", ".avi", ".mkv", ".webm")):
+        _quiet_mediapipe()
+    take = kinect_take(_load_motion(args.motion, args.scale))
+    frames = _frames(args.frames)
+    take = take.slice(frames.start or 0, frames.stop)
+    take = resample(take, args.fps if args.fps is not None else min(take.fps, 30.0))
+    if args.max_frames is not None:
+        take = take.slice(0, max(1, args.max_frames))
+    plan = plan_retarget(avatar, bonemap)
+    motion = retarget(plan, take.positions, take.tracked)
+    if out_ext in (".glb", ".gltf"):
+        from .export import write_avatar_gltf
+        write_avatar_gltf(args.output, avatar, motion, take.fps)
+    elif out_ext == ".bvh":
+        from .export import write_avatar_bvh
+        write_avatar_bvh(args.output, avatar, plan, motion, take.fps)
+    else:
+        from .export import write_avatar_video
+        write_avatar_video(args.output, avatar, motion, take.fps)
+    say(f"wrote {args.output} ({len(take)} frames at {take.fps:g} fps from {args.motion}, "
+        f"{time.perf_counter() - t0:.1f} s)")
+    return 0
