@@ -10,7 +10,6 @@ renormalised to sum 1 in float32. The joints' rest transforms are the bind pose 
 """
 from __future__ import annotations
 
-import base64
 import copy
 import re
 from pathlib import Path
@@ -20,7 +19,7 @@ import numpy as np
 import pygltflib as gl
 
 from ..errors import ExportError
-from ..export.gltf import _append, rotation_quaternions, skin_weights
+from ..export.gltf import _append, rotation_quaternions, save_gltf, skin_weights
 from .load import Avatar
 from .retarget import AvatarMotion, RetargetPlan
 from .skin import skin_avatar
@@ -70,18 +69,7 @@ def write_avatar_gltf(path, avatar: Avatar, motion: AvatarMotion, fps: float, na
             channels.append(gl.AnimationChannel(sampler=len(samplers) - 1,
                                                 target=gl.AnimationChannelTarget(node=int(avatar.joints[j]), path=prop)))
     doc.animations = [gl.Animation(name=name, samplers=samplers, channels=channels)]
-    doc.buffers = [gl.Buffer(byteLength=len(blob))]
-    doc.asset = gl.Asset(version="2.0", generator="Kinetre (avatar retargeting, pygltflib)")
-    try:
-        path.parent.mkdir(parents=True, exist_ok=True)
-        if ext == ".glb":
-            doc.set_binary_blob(bytes(blob))
-            doc.save_binary(str(path))
-        else:
-            doc.buffers[0].uri = "data:application/octet-stream;base64," + base64.b64encode(bytes(blob)).decode()
-            doc.save_json(str(path))
-    except OSError as err:
-        raise ExportError(f"{path}: cannot write the glTF file ({err.strerror or err})") from None
+    save_gltf(path, doc, blob, "Kinetre (avatar retargeting, pygltflib)")
 
 
 def write_avatar_bvh(path, avatar: Avatar, plan: RetargetPlan, motion: AvatarMotion, fps: float) -> None:

@@ -82,16 +82,20 @@ def write_gltf(path, mesh: Mesh, graph: DeformationGraph, poses: list[GraphPose]
     if stretch is None:
         stretch = polar_error_bound(mesh, graph, rotations) > tolerance * mesh.diagonal
     _add_skin_and_animation(doc, blob, graph, rotations, translations, fps, name, bool(stretch))
-    doc.buffers = [gl.Buffer(byteLength=len(blob))]
-    doc.asset = gl.Asset(version="2.0", generator="Kinetre (embedded deformation export, trimesh + pygltflib)")
+    save_gltf(path, doc, blob, "Kinetre (embedded deformation export, trimesh + pygltflib)")
 
+
+def save_gltf(path: Path, doc: gl.GLTF2, blob: bytes, generator: str) -> None:
+    """Write `doc` with `blob` as its one buffer: .glb binary, or .gltf with the buffer as a data URI."""
+    doc.buffers = [gl.Buffer(byteLength=len(blob))]
+    doc.asset = gl.Asset(version="2.0", generator=generator)
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
-        if ext == ".glb":
+        if path.suffix.lower() == ".glb":
             doc.set_binary_blob(bytes(blob))
             doc.save_binary(str(path))
         else:
-            doc.buffers[0].uri = "data:application/octet-stream;base64," + base64.b64encode(blob).decode()
+            doc.buffers[0].uri = "data:application/octet-stream;base64," + base64.b64encode(bytes(blob)).decode()
             doc.save_json(str(path))
     except OSError as err:
         raise ExportError(f"{path}: cannot write the glTF file ({err.strerror or err})") from None
