@@ -14,6 +14,8 @@ EPILOG = """examples:
   kinetre animate lamp.obj --motion walk.bvh --subset "HipCenter,right arm" -o lamp.mp4
   kinetre animate spot.obj --motion take.kinetre.jsonl --fit --yaw 90 -o spot.glb
   kinetre animate horse.ply --motion Fox.glb#Walk -o horse.glb
+  kinetre animate horse.ply --motion a.bvh --motion b.bvh --map two-people.json -o horse.glb
+  kinetre animate frames/ --motion walk.bvh -o scan_walk.glb
   kinetre info Fox.glb
   kinetre capture --video clip.mp4 -o take.kinetre.jsonl
   kinetre capture --camera 0 --seconds 10 -o take.kinetre.jsonl
@@ -104,10 +106,22 @@ def cmd_animate(args, stats: dict | None = None) -> int:
         stats[f"{stage}_s"] = now - clock
         clock = now
 
-    if args.motion.lower().endswith(VIDEO_EXTS):
-        _quiet_mediapipe()
-    take = _load_motion(args.motion, args.scale, as_kinect=not args.own_skeleton)  # small: fail fast
-    mesh = kinetre.load_mesh(args.mesh)
+    say = (lambda *a: None) if args.quiet else print
+    take, motion_label = _load_motions(args)  # small: fail fast
+    scan_notes: tuple[str, ...] = ()
+    from .scan.subject import is_frames
+    if is_frames(args.mesh):  # RGB-D frames: scan (plane segmentation by default), then rig and animate
+        from .scan.subject import scan_subject
+        mesh, scanned, scan_notes = scan_subject(args.mesh, None if args.segment == "none" else args.segment,
+                                                 args.before, progress=not args.quiet and sys.stderr.isatty())
+        say(f"scanned {args.mesh}: {scanned.frames_used} frames used, {scanned.frames_rejected} rejected, "
+            f"{scanned.seconds:.1f} s")
+        for note in scan_notes:
+            print(f"kinetre: note: {note}", file=sys.stderr)
+    else:
+        if args.before is not None or args.segment != "plane":
+            raise UsageError("--segment and --before apply when the input is RGB-D frames (a folder or .zip)")
+        mesh = kinetre.load_mesh(args.mesh)
     take = take.slice(frames.start or 0, frames.stop)
     fps = args.fps if args.fps is not None else min(take.fps, 30.0)
     take = resample(take, fps)
@@ -116,12 +130,14 @@ def cmd_animate(args, stats: dict | None = None) -> int:
     if not -len(take) <= args.bind_frame < len(take):
         raise UsageError(f"--bind-frame {args.bind_frame} is outside the take's {len(take)} frames")
     lap("load")
-    say = (lambda *a: None) if args.quiet else print
     say(f"mesh {args.mesh}: {len(mesh.vertices)} vertices, {len(mesh.faces)} faces")
-    say(f"motion {args.motion}: {take.model.name}, {len(take.model.joints)} joints, {len(take)} frames "
+    say(f"motion {motion_label}: {take.model.name}, {len(take.model.joints)} joints, {len(take)} frames "
         f"at {take.fps:g} fps")
 
+    rigging = _bar(3, "rigging", args.quiet)
+    rigging.unit = "step"
     graph = kinetre.build_graph(mesh, nodes=args.nodes, seed=args.seed)
+    rigging.update(1)
     lap("graph")
     fit_mesh = args.fit == "mesh"
     if take.model == kinetre.KINECT20:  # a person: face +Z, scale to height
@@ -138,10 +154,13 @@ def cmd_animate(args, stats: dict | None = None) -> int:
         say(f"fitted from the shapes: front by {shape.front}, turned {shape.turn:.0f} deg, size ratios "
             f"height {shape.ratios[0]:.3g} length {shape.ratios[1]:.3g}, {100 * shape.inside:.0f} % of the "
             f"bones inside the mesh")
+    rigging.update(1)
     placed = placement.take(take)
     solve_graph = placement.graph(graph)
     bind = placed.frame(args.bind_frame)
     rig = kinetre.attach(solve_graph, bind, subset=_subset(args.subset))
+    rigging.update(1)
+    rigging.close()
     att = rig.attachments[0]
     joints = [take.model.joints[j] for j in rig.attached_joints[0]]
     say(f"attached {len(joints)} joint(s) ({', '.join(joints) or 'none'}), {int((att.bone >= 0).sum())} bone "
@@ -181,6 +200,22 @@ def cmd_animate(args, stats: dict | None = None) -> int:
     stages = ", ".join(f"{k[:-2]} {v:.1f}" for k, v in stats.items() if k.endswith("_s") and k != "total_s")
     say(f"wrote {args.output} ({len(take)} frames at {take.fps:g} fps; {stats['total_s']:.1f} s: {stages})")
     return 0
+
+
+def _load_motions(args):
+    """The take `kinetre animate` drives with, and a label: one --motion, or several joined by --map."""
+    motions = args.motion if isinstance(args.motion, list) else [args.motion]
+    if any(m.lower().endswith(VIDEO_EXTS) for m in motions):
+        _quiet_mediapipe()
+    if len(motions) > 1 and args.map is None:
+        raise UsageError(f"{len(motions)} --motion given: a --map JSON says how they share the mesh "
+                         f"(see docs/joint-maps.md)")
+    if args.map is None:
+        return _load_motion(motions[0], args.scale, as_kinect=not args.own_skeleton), motions[0]
+    from .motion.jointmap import join_takes, read_joint_map
+    jmap = read_joint_map(args.map)
+    takes = [_load_motion(m, args.scale, as_kinect=not args.own_skeleton) for m in motions]
+    return join_takes(takes, jmap), f"{' + '.join(motions)} via {args.map}"
 
 
 def _attach_notes(take, rig, subset) -> tuple[str, ...]:
@@ -430,9 +465,17 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = sub.add_parser("animate", help="drive a mesh with a motion file and write glTF, BVH, video or a take",
                        epilog=EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)
-    p.add_argument("mesh", help="mesh file (.obj .ply .stl .off .glb .gltf, optionally .gz)")
-    p.add_argument("--motion", required=True,
-                   help="motion: .bvh, .kinetre.jsonl, a video, or a glTF animation (Fox.glb#Walk, Fox.glb#1)")
+    p.add_argument("mesh", help="mesh file (.obj .ply .stl .off .glb .gltf, optionally .gz), or RGB-D frames "
+                                "(a folder or .zip) to scan first")
+    p.add_argument("--motion", required=True, action="append",
+                   help="motion: .bvh, .kinetre.jsonl, a video, or a glTF animation (Fox.glb#Walk, Fox.glb#1); "
+                        "repeat it with --map to join several sources")
+    p.add_argument("--map", default=None, metavar="JSON",
+                   help="joint map: rename, drop and pair the joints of the --motion sources (docs/joint-maps.md)")
+    p.add_argument("--segment", choices=("plane", "change", "none"), default="plane",
+                   help="RGB-D input: how the scan cuts out the object (default plane)")
+    p.add_argument("--before", default=None, metavar="DIR",
+                   help="RGB-D input with --segment change: frames of the same place without the object")
     p.add_argument("-o", "--output", required=True, help=f"output: {' '.join(ANIMATE_OUTPUTS)}")
     p.add_argument("--nodes", type=int, default=128, help="graph nodes (default 128)")
     p.add_argument("--seed", type=int, default=0, help="graph sampling seed (default 0)")
