@@ -431,7 +431,29 @@ def write_graph_ply(path: str, graph) -> None:
 
 def cmd_studio(args) -> int:
     from .studio.app import run_studio
-    run_studio(args.mesh, host=args.host, port=args.port, open_browser=not args.no_browser)
+    run_studio(args.mesh, host=args.host, port=args.port, open_browser=not args.no_browser, nats=args.nats,
+               room=args.room, token=_token(args), remote_scene=args.remote_scene)
+    return 0
+
+
+def _token(args) -> str | None:
+    """The room token from --token or the KINETRE_TOKEN environment variable (kept out of `ps`)."""
+    return args.token or os.environ.get("KINETRE_TOKEN") or None
+
+
+def _add_room(p) -> None:
+    p.add_argument("--nats", metavar="URL", default=None,
+                   help="channels on this NATS server (nats://HOST:4222) instead of the embedded hub")
+    p.add_argument("--room", default="main", help="the room's name (its subjects are kinetre.ROOM.*)")
+    p.add_argument("--token", default=None, help="the room's token (or KINETRE_TOKEN); required off loopback")
+
+
+def cmd_scene(args) -> int:
+    from .studio.remote import run_scene
+    if not args.nats:
+        raise UsageError("kinetre scene needs --nats URL: it talks to studios only through a NATS server")
+    run_scene(args.mesh, args.nats, room=args.room, token=_token(args), nodes=args.nodes,
+              sample_motion=args.sample)
     return 0
 
 
@@ -538,7 +560,17 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--port", type=int, default=8000)
     p.add_argument("--host", default="127.0.0.1")
     p.add_argument("--no-browser", action="store_true", help="do not open a browser")
+    _add_room(p)
+    p.add_argument("--remote-scene", action="store_true",
+                   help="no scene in this server: a `kinetre scene` process on the same NATS room solves")
     p.set_defaults(func=cmd_studio)
+
+    p = sub.add_parser("scene", help="a headless scene: solves a room's skeletons over NATS, publishes transforms")
+    p.add_argument("mesh", nargs="?", default=None, help="mesh to load (default: the bundled Spot)")
+    p.add_argument("--nodes", type=int, default=128, help="graph nodes (default 128)")
+    p.add_argument("--sample", action="store_true", help="play the bundled walk as a capture client")
+    _add_room(p)
+    p.set_defaults(func=cmd_scene)
 
     _add_scan(sub)
     from .face.cli import add_face_parser

@@ -21,11 +21,15 @@ def free_port() -> int:
         return s.getsockname()[1]
 
 
-def start_server(mesh: str | None = None, nodes: int = 128, sample_motion: bool = False, timeout: float = 120):
-    """(process, base URL) of a running studio; the caller terminates the process."""
+def start_server(mesh: str | None = None, nodes: int = 128, sample_motion: bool = False, timeout: float = 120,
+                 **options):
+    """(process, base URL) of a running studio; the caller terminates the process.
+
+    `options` go to run_studio (nats=, room=, token=, remote_scene=).
+    """
     port = free_port()
     code = (f"from kinetre.studio.app import run_studio; run_studio({mesh!r}, '127.0.0.1', {port}, False, "
-            f"nodes={nodes}, sample_motion={sample_motion})")
+            f"nodes={nodes}, sample_motion={sample_motion}, **{options!r})")
     env = dict(os.environ, PYTHONUNBUFFERED="1")
     log = tempfile.TemporaryFile()  # not a pipe: nobody reads it while the server runs, so it must not fill
     proc = subprocess.Popen([sys.executable, "-c", code], env=env, stdout=log, stderr=subprocess.STDOUT)
@@ -36,7 +40,8 @@ def start_server(mesh: str | None = None, nodes: int = 128, sample_motion: bool 
             log.seek(0)
             raise RuntimeError(f"studio exited: {log.read().decode()[-2000:]}")
         try:
-            if httpx.get(url + "/api/state", timeout=2).status_code == 200:
+            if httpx.get(url + "/api/state", params={"token": options.get("token") or ""},
+                         timeout=2).status_code == 200:
                 return proc, url
         except httpx.HTTPError:
             time.sleep(0.3)

@@ -20,22 +20,24 @@ def frame_message(seq: int, skeleton, t: float | None = None) -> str:
 class StudioClient:
     """Connects, remembers the newest state/transforms, and waits for conditions on them."""
 
-    def __init__(self, url: str):
-        self.url = url.replace("http://", "ws://") + "/ws"
+    def __init__(self, url: str, token: str | None = None):
+        self.url = url.replace("http://", "ws://") + "/ws" + (f"?token={token}" if token else "")
         self.client = ""
         self.state: dict | None = None
         self.transforms: tuple | None = None  # (seq, mesh_id, t_source, t_out, matrices)
         self.transform_count = 0
         self.messages: list[dict] = []
+        self.blocks: list[tuple[float, bytes]] = []  # (t_source, raw block) per transform block
         self.arrivals: list[tuple[float, float]] = []  # (t_source, time received) per transform block
         self._ws = None
         self._reader = None
         self._changed = asyncio.Event()
+        self.connect_timeout = 30.0
 
     async def __aenter__(self):
         self._ws = await connect(self.url, max_size=1 << 22)
         self._reader = asyncio.get_running_loop().create_task(self._read())
-        await self.wait(lambda c: c.client and c.state is not None and c.transforms is not None)
+        await self.wait(lambda c: c.client and c.state is not None and c.transforms is not None, self.connect_timeout)
         return self
 
     async def __aexit__(self, *exc):
@@ -49,6 +51,7 @@ class StudioClient:
                 self.transforms = unpack_transforms(data)
                 self.transform_count += 1
                 self.arrivals.append((self.transforms[2], now))
+                self.blocks.append((self.transforms[2], data))
             else:
                 msg = json.loads(data)
                 self.messages.append(msg)

@@ -20,6 +20,7 @@ import contextlib
 import itertools
 import json
 import os
+import secrets
 import shutil
 import tempfile
 import threading
@@ -30,6 +31,7 @@ from pathlib import Path
 
 import numpy as np
 from starlette.applications import Starlette
+from starlette.middleware import Middleware
 from starlette.requests import Request
 from starlette.responses import FileResponse, JSONResponse, Response
 from starlette.routing import Mount, Route, WebSocketRoute
@@ -40,10 +42,13 @@ from ..errors import KinetreError
 from ..graph.build import build_graph
 from ..mesh.load import load_mesh
 from ..mesh.mesh import Mesh
+from .access import TokenGate, check_bind
 from .channels import Frame, Hub
+from .natsbus import NatsChannels
 from .placement import standing_mesh
 from .protocol import ProtocolError, parse_message, parse_skeleton, with_client
 from .scene import SKELETONS, STATE, TRANSFORMS, Scene, check_subset, now_ms, resample
+from .solve_worker import SolveWorker
 
 NODES = 128  # graph size for meshes loaded in the studio (the paper's default)
 TAKE_FPS = 30.0
@@ -172,6 +177,13 @@ class Studio:
         except (KinetreError, TypeError, ValueError) as exc:
             self.reply(client, {"type": "error", "message": str(exc)})
 
+    async def mesh_json(self, mesh_id: int) -> bytes | None:
+        """The mesh payload (JSON bytes) if `mesh_id` is the loaded mesh."""
+        scene = self.scene
+        if mesh_id != scene.mesh_id:
+            return None
+        return json.dumps(mesh_payload(scene.mesh, scene.graph, scene.mesh_id, scene.name)).encode()
+
     def reply(self, client: str, message: dict) -> None:
         self.hub.publish(Frame(f"kinetre.client.{client}", 0, now_ms(), json.dumps(message).encode()))
 
@@ -274,20 +286,40 @@ def export_take(folder: Path, mesh, graph, take, fps: float) -> dict[str, str]:
     return files
 
 
-def create_app(mesh_path: str | None = None, nodes: int = NODES, sample_motion: bool = True) -> Starlette:
-    """The studio as an ASGI app (tests run it under uvicorn on 127.0.0.1)."""
-    path = mesh_path or str(data_path("spot.obj"))
-    mesh, graph = prepare_mesh(path, nodes)
-    hub = Hub()
-    studio = Studio(hub, Scene(hub, mesh, graph, Path(path).name), nodes=nodes)
-    if sample_motion and mesh_path is None:
-        studio.player = sample_player(hub)
+def create_app(mesh_path: str | None = None, nodes: int = NODES, sample_motion: bool = True, *,
+               nats: str | None = None, room: str = "main", token: str | None = None,
+               remote_scene: bool = False) -> Starlette:
+    """The studio as an ASGI app (tests run it under uvicorn on 127.0.0.1).
+
+    With `nats` (a NATS server URL) the channels are that server's subjects for `room` (natsbus.py);
+    with `remote_scene` too, the scene is a `kinetre scene` process elsewhere and this server is only
+    the pages' gateway to it (remote.py). A `token` is required from every client (access.py).
+    """
+    hub = NatsChannels(room) if nats else Hub()
+    solver = None
+    if remote_scene:
+        if not nats:
+            raise KinetreError("a remote scene needs a NATS server (--nats URL)")
+        from .remote import GatewayStudio, SceneMirror
+        studio = GatewayStudio(hub, SceneMirror(hub), nodes=nodes)
+    else:
+        path = mesh_path or str(data_path("spot.obj"))
+        mesh, graph = prepare_mesh(path, nodes)
+        solver = SolveWorker()  # the solve never holds the server's interpreter
+        studio = Studio(hub, Scene(hub, mesh, graph, Path(path).name, solver=solver), nodes=nodes)
+        if sample_motion and mesh_path is None:
+            studio.player = sample_player(hub)
     clients = itertools.count(1)
+    prefix = f"{secrets.token_hex(2)}-" if nats else ""  # client names unique across studios of a room
     tasks: list[asyncio.Task] = []
 
     @contextlib.asynccontextmanager
     async def lifespan(app):
         loop = asyncio.get_running_loop()
+        if nats:
+            await hub.start(nats, token, name="kinetre-studio")
+        if solver is not None:
+            await solver.start()
         tasks.append(loop.create_task(studio.scene.run()))
         if studio.player is not None:
             tasks.append(loop.create_task(studio.player.run()))
@@ -295,18 +327,24 @@ def create_app(mesh_path: str | None = None, nodes: int = NODES, sample_motion: 
         yield
         for task in tasks:
             task.cancel()
+        if solver is not None:
+            solver.close()
+        if nats:
+            await hub.close()
         shutil.rmtree(studio.takes_dir, ignore_errors=True)
 
     async def ws_endpoint(ws: WebSocket) -> None:
         await ws.accept()
-        client = f"c{next(clients)}"
+        client = f"{prefix}c{next(clients)}"
         studio.stats[client] = stats = ClientStats()
         sub = hub.subscribe(SKELETONS, urgent=(TRANSFORMS, STATE, f"kinetre.client.{client}"))
         await ws.send_text(json.dumps({"type": "welcome", "client": client,
                                        "channel": f"kinetre.skeleton.{client}"}))
         await ws.send_text(json.dumps(studio.scene.state()))
-        await ws.send_bytes(studio.scene.transforms_block())
-        stats.sent = 3
+        block = studio.scene.transforms_block()  # None while a remote scene has not been heard yet
+        if block is not None:
+            await ws.send_bytes(block)
+        stats.sent = 3 if block is not None else 2
 
         async def send_loop() -> None:
             # One sender per connection: a slow viewer only ever has the newest frame per subject waiting.
@@ -350,10 +388,10 @@ def create_app(mesh_path: str | None = None, nodes: int = NODES, sample_motion: 
         return JSONResponse(studio.scene.state())
 
     async def mesh_get(request: Request) -> Response:
-        scene = studio.scene
-        if int(request.path_params["mesh_id"]) != scene.mesh_id:
+        payload = await studio.mesh_json(int(request.path_params["mesh_id"]))
+        if payload is None:
             return JSONResponse({"error": f"mesh {request.path_params['mesh_id']} is not loaded"}, 404)
-        return JSONResponse(mesh_payload(scene.mesh, scene.graph, scene.mesh_id, scene.name))
+        return Response(payload, media_type="application/json")
 
     async def mesh_post(request: Request) -> Response:
         name = request.query_params.get("name", "mesh")
@@ -452,7 +490,7 @@ def create_app(mesh_path: str | None = None, nodes: int = NODES, sample_motion: 
             return Response("The studio page is not built: run `make web` (cd web && npm ci && npm run build).",
                             503, media_type="text/plain")
         routes.append(Route("/", not_built))
-    app = Starlette(routes=routes, lifespan=lifespan)
+    app = Starlette(routes=routes, lifespan=lifespan, middleware=[Middleware(TokenGate, room=room, token=token)])
     app.state.studio = studio
     return app
 
@@ -472,15 +510,28 @@ def sample_player(hub: Hub):
 
 
 def run_studio(mesh_path: str | None, host: str = "127.0.0.1", port: int = 8000, open_browser: bool = True,
-               nodes: int = NODES, sample_motion: bool = True) -> None:
-    """Serve the studio until interrupted (what `kinetre studio` runs). Raises KinetreError on a bad mesh.
+               nodes: int = NODES, sample_motion: bool = True, *, nats: str | None = None, room: str = "main",
+               token: str | None = None, remote_scene: bool = False) -> None:
+    """Serve the studio until interrupted (what `kinetre studio` runs). Raises KinetreError on a bad mesh,
+    an unreachable or refusing NATS server, or a non-loopback `host` without a `token`.
 
     Without `mesh_path` the sample mesh (Spot) is loaded and, with `sample_motion`, a CMU walk drives it.
     """
     import uvicorn
-    app = create_app(mesh_path, nodes, sample_motion)
+    check_bind(host, token)
+    if nats:
+        asyncio.run(probe_nats(nats, room, token))  # a clear error now rather than a traceback at startup
+    app = create_app(mesh_path, nodes, sample_motion, nats=nats, room=room, token=token, remote_scene=remote_scene)
     url = f"http://{'127.0.0.1' if host in ('0.0.0.0', '::') else host}:{port}/"
+    if token:
+        url += f"?token={token}"
     if open_browser:
         threading.Timer(1.0, webbrowser.open, args=(url,)).start()
     print(f"Kinetre studio on {url} (Ctrl+C to stop)", flush=True)
     uvicorn.run(app, host=host, port=port, log_level="warning", ws_max_size=1 << 20)
+
+
+async def probe_nats(url: str, room: str, token: str | None) -> None:
+    """Connect to the room once and leave; raises NetworkError with the reason."""
+    bus = await NatsChannels.connect(url, room, token, name="kinetre-probe")
+    await bus.close()

@@ -10,8 +10,11 @@ from __future__ import annotations
 import asyncio
 import json
 import logging
+import shutil
+import tempfile
 import time
 from dataclasses import dataclass, field
+from pathlib import Path
 
 import numpy as np
 
@@ -20,11 +23,12 @@ from ..errors import AttachError
 from ..graph.graph import DeformationGraph
 from ..mesh.mesh import Mesh
 from ..skeleton.models import Skeleton
-from ..skeleton.rig import Rig, attach
 from ..skeleton.subsets import subset_mask
 from .channels import Channels, Frame
 from .placement import Placement
 from .protocol import ProtocolError, pack_transforms, parse_message, parse_skeleton
+from .solve_worker import InlineSolver, SolverLost
+from .takelog import TakeLog, read_take_log
 
 log = logging.getLogger("kinetre.studio")
 
@@ -78,16 +82,18 @@ class Scene:
         Shown in the page.
     """
 
-    def __init__(self, hub: Channels, mesh: Mesh, graph: DeformationGraph, name: str = "mesh"):
+    def __init__(self, hub: Channels, mesh: Mesh, graph: DeformationGraph, name: str = "mesh", solver=None):
         self.hub = hub
+        self.solver = solver if solver is not None else InlineSolver()  # SolveWorker: the rig in its own process
+        self.attached: list = []  # per possessor, the joints that attached
         self.users: dict[str, User] = {}
         self.placement = Placement()
         self.mesh_id = 0
-        self.rig: Rig | None = None
+        self.rig = None  # the solver holding the rig while anyone possesses the mesh
         self.possessors: list[str] = []  # order of the skeletons given to the rig
         self.pose: GraphPose | None = None
         self.seq = 0
-        self.recording: list[TakeFrame] | None = None
+        self.recording: TakeLog | None = None
         self.last_error = ""
         self.solve_ms: list[float] = []  # recent solve durations, for the state line
         self._lock = asyncio.Lock()  # one attach/solve at a time; both run in a worker thread
@@ -104,6 +110,8 @@ class Scene:
         for user in self.users.values():
             user.bind = None
         self.pose = GraphPose.identity(graph.node_count)
+        if self.recording is not None:
+            self.recording.close()
         self.recording = None
         self._publish_pose(now_ms())
         self.publish_state()
@@ -216,7 +224,8 @@ class Scene:
                 return
             binds = [self.users[c].bind for c in possessors]
             graph = self.graph
-            self.rig = await asyncio.to_thread(attach, graph, binds if len(binds) > 1 else binds[0])
+            self.attached = await self.solver.attach(graph, binds if len(binds) > 1 else binds[0])
+            self.rig = self.solver
             self.possessors = possessors
         self._dirty.set()
 
@@ -271,13 +280,17 @@ class Scene:
             frames = [u.masked(self.placement.to_local(u.latest)) for u in users]
             t_source = max(u.t for u in users)
             start = time.perf_counter()
-            rig = self.rig
-            pose = await asyncio.to_thread(rig.solve, frames if len(frames) > 1 else frames[0])
+            try:
+                pose = await self.solver.solve(frames if len(frames) > 1 else frames[0])
+            except SolverLost:
+                self.rig = None  # the worker died: re-attach everybody at their current pose
+                self._rebuild_rig_later()
+                raise
             self.solve_ms = (self.solve_ms + [1000 * (time.perf_counter() - start)])[-60:]
             self.pose = pose
+            if self.recording is not None:  # on disk before any viewer sees the frame
+                self.recording.append(self.seq + 1, now_ms(), pose, {u.client: u.latest for u in users})
             self._publish_pose(t_source)
-            if self.recording is not None:
-                self.recording.append(TakeFrame(now_ms(), pose, {u.client: u.latest for u in users}))
             return pose
 
     def _publish_pose(self, t_source: float) -> None:
@@ -295,10 +308,7 @@ class Scene:
     def state(self) -> dict:
         attached = {}
         if self.rig is not None:
-            joints = getattr(self.rig, "attached_joints", None)
-            if joints is not None:
-                per = joints
-                attached = {c: np.asarray(j).tolist() for c, j in zip(self.possessors, per)}
+            attached = {c: np.asarray(j).tolist() for c, j in zip(self.possessors, self.attached)}
         return {
             "type": "state",
             "mesh": {"id": self.mesh_id, "name": self.name, "url": f"/api/mesh/{self.mesh_id}",
@@ -317,13 +327,26 @@ class Scene:
         self.hub.publish(Frame(STATE, self._state_seq, now_ms(), json.dumps(self.state()).encode()))
 
     # --- takes --------------------------------------------------------------------------------------
-    def start_recording(self) -> None:
-        self.recording = []
+    def start_recording(self, path: str | Path | None = None) -> Path:
+        """Record solved frames to `path` (a temporary file by default), flushed per frame; returns the path."""
+        if self.recording is not None:
+            self.recording.close()
+        if path is None:
+            path = Path(tempfile.mkdtemp(prefix="kinetre-recording-")) / "take.log.jsonl"
+        self.recording = TakeLog(path)
         self.publish_state()
+        return self.recording.path
 
     def stop_recording(self) -> list[TakeFrame]:
-        take, self.recording = self.recording or [], None
+        """The recorded frames, read back from the take log (which is then removed)."""
+        log_, self.recording = self.recording, None
         self.publish_state()
+        if log_ is None:
+            return []
+        log_.close()
+        take = [TakeFrame(t, pose, skeletons) for _, t, pose, skeletons in read_take_log(log_.path)]
+        if log_.path.parent.name.startswith("kinetre-recording-"):  # ours: a caller's path is left alone
+            shutil.rmtree(log_.path.parent, ignore_errors=True)
         return take
 
 

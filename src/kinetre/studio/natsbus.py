@@ -1,0 +1,315 @@
+"""The studio's channels over a NATS server, so capture pages, viewers and the scene can run on many machines.
+
+`NatsChannels` offers the embedded `Hub`'s interface (`publish`, `subscribe` handing out latest-wins
+`Subscription`s) and maps the studio's subjects into one room on the wire:
+
+    studio subject                 NATS subject
+    kinetre.skeleton.<user>   ↔    kinetre.<room>.skeleton.<user>     a capture client's frames
+    kinetre.transforms        ↔    kinetre.<room>.transforms          the scene's node matrices
+    kinetre.state             ↔    kinetre.<room>.state               the scene's state (also its heartbeat)
+    kinetre.client.<user>     ↔    kinetre.<room>.client.<user>       replies to one client
+    kinetre.command.<user>    ↔    kinetre.<room>.command.<user>      a client's commands to a remote scene
+
+Every message is a 16-byte envelope (u64 sequence number, f64 capture timestamp in ms, little-endian)
+followed by the payload, so the sequence and capture time travel end to end without NATS headers.
+Access is per room (*ours*): the NATS user is the room's name and its password the room's token, and the
+server's per-user permissions (`server_config`) confine that user to `kinetre.<room>.>`; request inboxes
+live inside the room too, so a reply never crosses rooms.
+
+Live subjects (skeletons, transforms, state) are latest-wins on both ends: a publisher that is ahead of
+its socket replaces the unsent frame of the same subject, and a frame older than the newest one
+delivered on its subject (smaller sequence number and capture time) is dropped as late. Frames
+published while the server is unreachable are dropped by policy (counted), never queued for replay.
+"""
+from __future__ import annotations
+
+import asyncio
+import logging
+import struct
+from dataclasses import dataclass, field
+
+from ..errors import KinetreError
+from .channels import Frame, Subscription, subject_matches
+
+log = logging.getLogger("kinetre.network")
+
+ENVELOPE = struct.Struct("<Qd")  # seq, capture timestamp (ms)
+LIVE_KINDS = ("skeleton", "transforms", "state")  # latest-wins subjects; commands and replies keep every message
+ROOM_CHARS = set("abcdefghijklmnopqrstuvwxyzABCDEFGHIJKLMNOPQRSTUVWXYZ0123456789-_")
+
+
+class NetworkError(KinetreError):
+    """The NATS server is unreachable, refused our credentials, or refused a subject."""
+
+
+def check_room(room: str) -> str:
+    """A room name is one subject token: letters, digits, '-' and '_'."""
+    if not room or not set(room) <= ROOM_CHARS or len(room) > 64:
+        raise NetworkError(f"room name {room!r}: use 1-64 letters, digits, '-' or '_'")
+    return room
+
+
+def pack(frame: Frame) -> bytes:
+    return ENVELOPE.pack(frame.seq & 0xFFFFFFFFFFFFFFFF, frame.t) + frame.data
+
+
+def unpack(subject: str, payload: bytes) -> Frame | None:
+    """The Frame inside a NATS message, or None when it has no envelope (a foreign publisher)."""
+    if len(payload) < ENVELOPE.size:
+        return None
+    seq, t = ENVELOPE.unpack_from(payload)
+    return Frame(subject, seq, t, payload[ENVELOPE.size:])
+
+
+def server_config(rooms: dict[str, str], port: int, host: str = "127.0.0.1", max_payload: int = 1 << 20) -> str:
+    """A nats-server configuration with one user per room, confined to that room's subjects.
+
+    `rooms` maps room name → token (the user's password). Pass the text to `nats-server -c FILE`.
+    """
+    users = []
+    for room, token in rooms.items():
+        check_room(room)
+        if not token or '"' in token or "\\" in token:
+            raise NetworkError(f"room {room!r}: the token must be non-empty, without quotes or backslashes")
+        allow = f'["kinetre.{room}.>"]'
+        users.append(f'    {{user: "{room}", password: "{token}", '
+                     f'permissions: {{publish: {{allow: {allow}}}, subscribe: {{allow: {allow}}}}}}}')
+    return (f"listen: {host}:{port}\nmax_payload: {max_payload}\n"
+            "authorization {\n  users = [\n" + ",\n".join(users) + "\n  ]\n}\n")
+
+
+@dataclass
+class BusCounters:
+    published: int = 0
+    replaced: int = 0  # live frames replaced in the outbox before they went out (dropped by policy)
+    offline: int = 0  # frames published while the server was unreachable (dropped by policy)
+    received: int = 0
+    late: int = 0  # frames older than the newest delivered on their subject (dropped by policy)
+    reconnects: int = 0
+    errors: list[str] = field(default_factory=list)
+
+
+class NatsChannels:
+    """`Hub`'s interface over a NATS connection for one room.
+
+    Usable before `start` (frames published then are dropped as offline, subscriptions wait for the
+    connection), so a studio can be built synchronously and connect inside its event loop.
+    """
+
+    def __init__(self, room: str = "main"):
+        self.room = check_room(room)
+        self.nc = None
+        self.url = ""
+        self.prefix = f"kinetre.{room}."
+        self.counters = BusCounters()
+        self._subs: dict[str, object] = {}  # wire pattern → nats subscription (or the task creating it)
+        self._local: dict[str, list[Subscription]] = {}  # wire pattern → our subscriptions
+        self._newest: dict[str, tuple[int, float]] = {}  # subject → (seq, t) last delivered
+        self._outbox: dict[object, tuple[str, bytes]] = {}
+        self._pending: asyncio.Event | None = None
+        self._sender: asyncio.Task | None = None
+        self._n = 0
+
+    @classmethod
+    async def connect(cls, url: str, room: str = "main", token: str | None = None, name: str = "kinetre",
+                      timeout: float = 5.0) -> "NatsChannels":
+        channels = cls(room)
+        await channels.start(url, token, name, timeout)
+        return channels
+
+    async def start(self, url: str, token: str | None = None, name: str = "kinetre", timeout: float = 5.0) -> None:
+        """Connect as the room's user; raises NetworkError (with the reason) when refused or unreachable."""
+        import nats
+        import nats.errors
+        room = self.room
+        counters = self.counters
+
+        async def error_cb(exc):
+            text = str(exc) or type(exc).__name__
+            counters.errors[:] = counters.errors[-99:] + [text]
+            log.debug("NATS %s: %s", url, text)
+
+        async def reconnected_cb():
+            counters.reconnects += 1
+
+        auth = {"user": room, "password": token} if token else {}
+        try:
+            # a first connection that does not retry, so a refusal comes back as a clear error at once
+            probe = await asyncio.wait_for(nats.connect(
+                servers=[url], error_cb=error_cb, allow_reconnect=False, max_reconnect_attempts=0, connect_timeout=2, **auth),
+                timeout)
+            await probe.close()
+            nc = await asyncio.wait_for(nats.connect(
+                servers=[url], name=name, error_cb=error_cb, reconnected_cb=reconnected_cb,
+                # a live studio resumes fast after a server restart and never gives up
+                reconnect_time_wait=0.2, max_reconnect_attempts=-1, connect_timeout=2,
+                allow_reconnect=True, ping_interval=5, max_outstanding_pings=2,
+                inbox_prefix=f"kinetre.{room}._INBOX", **auth), timeout)
+        except (nats.errors.NoServersError, OSError, asyncio.TimeoutError):
+            raise NetworkError(f"{url}: no NATS server answers there (is nats-server running?)") from None
+        except nats.errors.Error as exc:
+            reason = str(exc) or type(exc).__name__
+            if "authorization" in reason.lower():
+                reason = (f"room {room!r} was refused: {'wrong' if token else 'missing'} token "
+                          "(the NATS user is the room's name, its password the room's token)")
+            raise NetworkError(f"{url}: {reason}") from None
+        self.nc, self.url = nc, url
+        self._pending = asyncio.Event()
+        self._sender = asyncio.get_running_loop().create_task(self._send_loop())
+        for wire in list(self._local):
+            self._subs[wire] = asyncio.get_running_loop().create_task(self._nats_subscribe(wire))
+
+    # --- subjects ---------------------------------------------------------------------------------------
+    def wire(self, subject: str) -> str:
+        """"kinetre.transforms" → "kinetre.<room>.transforms"."""
+        if not subject.startswith("kinetre."):
+            raise NetworkError(f"subject {subject!r} is outside the studio's namespace")
+        return self.prefix + subject[len("kinetre."):]
+
+    def local(self, wire_subject: str) -> str:
+        return "kinetre." + wire_subject[len(self.prefix):]
+
+    # --- publishing -------------------------------------------------------------------------------------
+    def publish(self, frame: Frame) -> None:
+        if self.nc is None or not self.nc.is_connected:
+            self.counters.offline += 1
+            return
+        subject = self.wire(frame.subject)
+        kind = frame.subject.split(".")[1] if frame.subject.count(".") else ""
+        if kind in LIVE_KINDS:
+            key = subject
+            if key in self._outbox:
+                self.counters.replaced += 1
+        else:
+            self._n += 1
+            key = self._n  # commands and replies: every one goes out, in order
+        self._outbox[key] = (subject, pack(frame))
+        self.counters.published += 1
+        self._pending.set()
+
+    async def _send_loop(self) -> None:
+        while True:
+            await self._pending.wait()
+            self._pending.clear()
+            batch, self._outbox = self._outbox, {}
+            for subject, payload in batch.values():
+                try:
+                    await self.nc.publish(subject, payload)
+                except Exception as exc:  # closed or reconnecting: live data is dropped, not replayed
+                    self.counters.offline += 1
+                    log.debug("publish on %s failed: %s", subject, exc)
+
+    # --- subscribing ------------------------------------------------------------------------------------
+    def subscribe(self, *patterns: str, urgent: tuple[str, ...] = ()) -> Subscription:
+        sub = Subscription(self, patterns + tuple(urgent), tuple(urgent))
+        for pattern in sub.patterns:
+            wire = self.wire(pattern)
+            self._local.setdefault(wire, []).append(sub)
+            if wire not in self._subs and self.nc is not None:
+                self._subs[wire] = asyncio.get_running_loop().create_task(self._nats_subscribe(wire))
+        return sub
+
+    async def _nats_subscribe(self, wire: str) -> None:
+        async def deliver(msg) -> None:
+            frame = unpack(self.local(msg.subject), msg.data)
+            if frame is None:
+                return
+            self.counters.received += 1
+            kind = frame.subject.split(".")[1]
+            if kind in LIVE_KINDS:
+                newest = self._newest.get(frame.subject)
+                if newest is not None and frame.seq <= newest[0] and frame.t <= newest[1]:
+                    self.counters.late += 1
+                    return
+                self._newest[frame.subject] = (frame.seq, frame.t)
+            for sub in self._local.get(wire, ()):
+                sub._offer(frame)
+
+        self._subs[wire] = await self.nc.subscribe(wire, cb=deliver)
+
+    async def ready(self, timeout: float = 5.0) -> None:
+        """Wait until every subscription is registered with the server; raises NetworkError if one was refused."""
+        tasks = [t for t in self._subs.values() if isinstance(t, asyncio.Task)]
+        if tasks:
+            await asyncio.gather(*tasks)
+        errors = len(self.counters.errors)
+        try:
+            await self.nc.flush(timeout)
+        except Exception as exc:
+            raise NetworkError(f"the NATS server did not answer: {exc or type(exc).__name__}") from None
+        await asyncio.sleep(0.05)  # a permissions error arrives right after the PONG
+        refused = [e for e in self.counters.errors[errors:] if "permissions" in e.lower()]
+        if refused:
+            raise NetworkError(f"room {self.room!r}: {refused[0]}")
+
+    def _remove(self, sub: Subscription) -> None:
+        for wire, subs in list(self._local.items()):
+            if sub in subs:
+                subs.remove(sub)
+            if not subs:
+                del self._local[wire]
+                nats_sub = self._subs.pop(wire, None)
+                if nats_sub is not None and not isinstance(nats_sub, asyncio.Task):
+                    asyncio.get_running_loop().create_task(self._unsubscribe(nats_sub))
+
+    @staticmethod
+    async def _unsubscribe(nats_sub) -> None:
+        try:
+            await nats_sub.unsubscribe()
+        except Exception:  # the connection is closing anyway
+            pass
+
+    # --- request/reply (commands that need an answer) ---------------------------------------------------
+    async def request(self, subject: str, data: bytes, timeout: float = 5.0) -> bytes:
+        """One request on a studio subject, answered by whoever serves it (raises NetworkError on silence)."""
+        import nats.errors
+        try:
+            msg = await self.nc.request(self.wire(subject), data, timeout=timeout)
+        except (nats.errors.TimeoutError, nats.errors.NoRespondersError):
+            raise NetworkError(f"nobody answered on {subject} in room {self.room!r} (is the scene running?)") \
+                from None
+        return msg.data
+
+    async def serve(self, subject: str, handler) -> None:
+        """Answer requests on a studio subject with `await handler(data) -> bytes`."""
+        async def answer(msg) -> None:
+            try:
+                reply = await handler(msg.data)
+            except Exception as exc:  # the requester gets the reason, the server keeps serving
+                reply = b"\x00" + f"{type(exc).__name__}: {exc}".encode()
+            if msg.reply:
+                await self.nc.publish(msg.reply, reply)
+
+        self._subs[self.wire(subject)] = await self.nc.subscribe(self.wire(subject), cb=answer)
+
+    def deliver_local(self, frame: Frame) -> None:
+        """Offer a frame to this process's subscribers only (e.g. the gateway's "scene lost" state)."""
+        for wire, subs in self._local.items():
+            if subject_matches(wire, self.wire(frame.subject)):
+                for sub in subs:
+                    sub._offer(frame)
+
+    async def listen(self, pattern: str, handler) -> None:
+        """`await handler(frame)` for every message on `pattern`, in order (commands: none may be merged)."""
+        async def deliver(msg) -> None:
+            frame = unpack(self.local(msg.subject), msg.data)
+            if frame is not None:
+                try:
+                    await handler(frame)
+                except Exception:
+                    log.exception("handling %s", frame.subject)
+
+        self._subs[self.wire(pattern)] = await self.nc.subscribe(self.wire(pattern), cb=deliver)
+
+    @property
+    def connected(self) -> bool:
+        return self.nc is not None and bool(self.nc.is_connected)
+
+    async def close(self) -> None:
+        if self.nc is None:
+            return
+        self._sender.cancel()
+        try:
+            await self.nc.drain()
+        except Exception:
+            await self.nc.close()

@@ -1,0 +1,134 @@
+"""The rig lives in its own process, so a long solve never holds the server's interpreter (issue 12).
+
+The scene sends "attach" once per possession and then the newest frames, one solve in flight at a
+time: frames that arrive meanwhile are merged latest-wins by the scene, so a slow solve lowers the
+solve rate instead of building a queue, and the server's event loop only waits on a pipe. Only the
+public `attach` / `Rig.solve` / `SolverSettings` API is used.
+
+    InlineSolver   attach and solve in a thread of this process (unit tests, offline tools)
+    SolveWorker    attach and solve in a child process (the studio and `kinetre scene`)
+"""
+from __future__ import annotations
+
+import asyncio
+import multiprocessing
+import os
+
+import numpy as np
+
+from ..deform.pose import GraphPose
+from ..deform.solver import SolverSettings
+from ..errors import KinetreError
+from ..skeleton.rig import attach
+
+
+
+class SolverLost(KinetreError):
+    """The solve process died (killed, or out of memory); the scene starts a new one and re-attaches."""
+
+
+class InlineSolver:
+    """attach/solve in a worker thread of this process."""
+
+    def __init__(self):
+        self.rig = None
+
+    async def attach(self, graph, skeletons, settings: SolverSettings = SolverSettings()) -> list[np.ndarray]:
+        self.rig = await asyncio.to_thread(attach, graph, skeletons, settings=settings)
+        return self.rig.attached_joints
+
+    async def solve(self, skeletons) -> GraphPose:
+        return await asyncio.to_thread(self.rig.solve, skeletons)
+
+    def detach(self) -> None:
+        self.rig = None
+
+    def close(self) -> None:
+        self.rig = None
+
+
+def _serve(conn) -> None:
+    """The child: one rig, requests answered in order until the pipe closes."""
+    os.environ.setdefault("OMP_NUM_THREADS", "1")
+    rig = None
+    while True:
+        try:
+            request = conn.recv()
+        except (EOFError, OSError):
+            return
+        try:
+            if request[0] == "attach":
+                _, graph, skeletons, settings = request
+                rig = attach(graph, skeletons, settings=settings)
+                conn.send(("ok", rig.attached_joints))
+            elif request[0] == "solve":
+                conn.send(("ok", rig.solve(request[1])))
+            elif request[0] == "ping":
+                conn.send(("ok", os.getpid()))
+        except KinetreError as exc:
+            conn.send(("error", exc))
+        except Exception as exc:  # a bug in a solve is reported to the scene, the process lives on
+            conn.send(("error", KinetreError(f"solve failed: {type(exc).__name__}: {exc}")))
+
+
+class SolveWorker:
+    """attach/solve in a child process (spawned once, restarted after it dies)."""
+
+    def __init__(self):
+        self._proc = None
+        self._conn = None
+        self._lock = asyncio.Lock()
+        self.restarts = 0
+
+    @property
+    def pid(self) -> int | None:
+        return self._proc.pid if self._proc is not None else None
+
+    def _start(self) -> None:
+        ctx = multiprocessing.get_context("spawn")  # no fork of a process with an event loop and threads
+        parent, child = ctx.Pipe()
+        self._proc = ctx.Process(target=_serve, args=(child,), daemon=True, name="kinetre-solve")
+        self._proc.start()
+        child.close()
+        self._conn = parent
+
+    async def _call(self, *request):
+        async with self._lock:
+            if self._proc is None or not self._proc.is_alive():
+                if self._proc is not None:
+                    self.restarts += 1
+                await asyncio.to_thread(self._start)
+            try:
+                self._conn.send(request)
+                status, value = await asyncio.to_thread(self._conn.recv)
+            except (EOFError, OSError, BrokenPipeError):
+                self._proc = None
+                raise SolverLost("the solve process stopped; possess again") from None
+        if status == "error":
+            raise value
+        return value
+
+    async def start(self) -> int:
+        """Spawn the process now (instead of at the first possession); returns its pid."""
+        return await self._call("ping")
+
+    async def attach(self, graph, skeletons, settings: SolverSettings = SolverSettings()) -> list[np.ndarray]:
+        return await self._call("attach", graph, skeletons, settings)
+
+    async def solve(self, skeletons) -> GraphPose:
+        return await self._call("solve", skeletons)
+
+    def detach(self) -> None:
+        pass  # the child's rig is replaced at the next attach
+
+    def close(self) -> None:
+        if self._proc is not None:
+            try:
+                self._conn.close()
+            except OSError:
+                pass
+            self._proc.join(2)
+            if self._proc.is_alive():
+                self._proc.kill()
+                self._proc.join(2)
+            self._proc = None
