@@ -7,6 +7,7 @@ nats-server must be installed (the Makefile's APT_PACKAGES): without it these te
 import asyncio
 import json
 import os
+import shutil
 import subprocess
 import sys
 import tempfile
@@ -70,6 +71,7 @@ def network():
         finally:
             stop(box["studio"])
             stop(box["scene"])
+            shutil.rmtree(tmp, ignore_errors=True)
 
 
 def wait_for(client, t_source: float, timeout: float = 30.0):

@@ -20,7 +20,7 @@ import time
 from pathlib import Path
 
 from ..errors import KinetreError
-from .app import MAX_UPLOAD, ClientStats, Job, Studio, data_path, prepare_mesh, sample_player
+from .app import MAX_UPLOAD, ClientStats, Job, Studio, data_path, prepare_mesh, probe_nats, sample_player
 from .channels import Frame
 from .natsbus import NatsChannels
 from .placement import Placement
@@ -198,12 +198,15 @@ class GatewayStudio(Studio):
 async def serve_scene(mesh_path: str | None, url: str, room: str = "main", token: str | None = None,
                       nodes: int = 128, sample_motion: bool = False, started=None) -> None:
     """`kinetre scene`: run until cancelled. `started(studio)` is called once it serves."""
-    bus = await NatsChannels.connect(url, room, token, name="kinetre-scene")
+    await probe_nats(url, room, token)  # a refusal is reported before the mesh is loaded
     path = mesh_path or str(data_path("spot.obj"))
     mesh, graph = await asyncio.to_thread(prepare_mesh, path, nodes)
     worker = SolveWorker()
     await worker.start()
+    # connected only once the scene exists: nobody may hear of it before it subscribes (see below)
+    bus = NatsChannels(room)
     studio = Studio(bus, Scene(bus, mesh, graph, Path(path).name, solver=worker), nodes=nodes)
+    await bus.start(url, token, name="kinetre-scene")
     if sample_motion and mesh_path is None:
         studio.player = sample_player(bus)
     scene = studio.scene
@@ -278,6 +281,8 @@ async def serve_scene(mesh_path: str | None, url: str, room: str = "main", token
         tasks.append(loop.create_task(studio.player.run()))
         await asyncio.sleep(0.1)
         await studio.start_sample()
+    await asyncio.sleep(0.05)  # the scene's task subscribes to the skeletons when it first runs
+    await bus.ready()  # …and the server has it before anyone hears that the scene is up
     scene.publish_state()
     if started is not None:
         started(studio)
