@@ -72,6 +72,13 @@ class SourceMap:
                                      f"(joints: {', '.join(model.joints)})")
         return keep & ~drop
 
+    def joint_names(self, model: SkeletonModel, where: str = "joint map") -> list[str]:
+        """The (original) names of the joints of `model` this entry keeps: a subset for one studio user."""
+        keep = self.mask(model, where)
+        if not keep.any():
+            raise BadMotionError(f"{where}: keeps no joint of {model.name!r}")
+        return [n for n, k in zip(model.joints, keep) if k]
+
 
 @dataclass(frozen=True)
 class JointMap:

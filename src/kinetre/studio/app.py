@@ -11,6 +11,8 @@
     POST /api/voice?client=C   16 kHz mono WAV: recognised offline, "possess"/"release"/subset applied for C
     POST /api/record/start     start recording a take; /api/record/stop ends it and exports GLB, BVH, stream
     GET  /api/takes/{id}/{f}   a file of a recorded take
+    POST /api/jointmap?name=F  a joint map (JSON, docs/joint-maps.md): the n-th user to possess drives with the
+                               joints its n-th source keeps; DELETE /api/jointmap clears it
 """
 from __future__ import annotations
 
@@ -471,8 +473,24 @@ def create_app(mesh_path: str | None = None, nodes: int = NODES, sample_motion: 
             return JSONResponse({"error": f"no file {name} in take {request.path_params['take_id']}"}, 404)
         return FileResponse(path, filename=f"kinetre-{request.path_params['take_id']}-{path.name}")
 
+    async def joint_map(request: Request) -> Response:
+        from ..motion.jointmap import parse_joint_map
+        if request.method == "DELETE":
+            studio.scene.joint_map = None
+        else:
+            name = Path(request.query_params.get("name", "joint map")).name
+            try:
+                studio.scene.joint_map = parse_joint_map(json.loads(await request.body()), name)
+            except ValueError as exc:  # JSONDecodeError and UnicodeDecodeError are ValueErrors
+                return JSONResponse({"error": f"{name}: not valid JSON ({exc})"}, 400)
+            except KinetreError as exc:
+                return JSONResponse({"error": str(exc)}, 400)
+        studio.scene.publish_state()
+        return JSONResponse({"joint_map": studio.scene.state()["joint_map"]})
+
     routes = [
         WebSocketRoute("/ws", ws_endpoint),
+        Route("/api/jointmap", joint_map, methods=["POST", "DELETE"]),
         Route("/api/state", state),
         Route("/api/mesh/{mesh_id:int}", mesh_get),
         Route("/api/mesh", mesh_post, methods=["POST"]),

@@ -96,6 +96,7 @@ class Scene:
         self.recording: TakeLog | None = None
         self.last_error = ""
         self.solve_ms: list[float] = []  # recent solve durations, for the state line
+        self.joint_map = None  # a JointMap: the n-th user to possess drives with the joints sources[n] keeps
         self._lock = asyncio.Lock()  # one attach/solve at a time; both run in a worker thread
         self._dirty = asyncio.Event()
         self._state_seq = 0
@@ -179,6 +180,10 @@ class Scene:
         user = self.user(client)
         if user.latest is None or not user.latest.tracked.any():
             raise AttachError("no tracked skeleton from this client yet: nothing to possess with")
+        if subset is None and self.joint_map is not None:
+            others = sum(1 for c, u in self.users.items() if c != client and u.bind is not None)
+            if others < len(self.joint_map.sources):
+                subset = self.joint_map.sources[others].joint_names(user.latest.model, self.joint_map.path)
         if subset is not None:
             subset_mask(user.latest.model, subset)  # BadSkeletonError on an unknown name
         old_bind, old_subset = user.bind, user.subset
@@ -318,6 +323,8 @@ class Scene:
                        "frames": u.frames, "attached": attached.get(u.client, [])}
                       for u in self.users.values()],
             "recording": self.recording is not None,
+            "joint_map": None if self.joint_map is None else {"name": self.joint_map.path,
+                                                             "sources": len(self.joint_map.sources)},
             "solve_ms": float(np.median(self.solve_ms)) if self.solve_ms else None,
             "error": self.last_error,
         }

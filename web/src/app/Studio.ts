@@ -17,6 +17,7 @@ import { SkeletonFigure } from '../scene/SkeletonFigure';
 import { SkinnedGraphMesh } from '../scene/SkinnedGraphMesh';
 import { Viewport } from '../scene/Viewport';
 import { Panel } from '../ui/Panel';
+import { JointMapControl } from '../rigging/JointMapControl';
 import { VoiceListener, type VoiceResult } from '../voice/VoiceListener';
 
 const OTHER_COLOURS = [0x7fdbff, 0xb10dc9, 0x2ecc40, 0xffdc00];
@@ -35,6 +36,7 @@ export class Studio {
   readonly takes = new TakeRecorder();
   readonly video: CanvasRecorder;
   readonly uploader: MeshUploader;
+  readonly jointMap: JointMapControl;
   graphMesh: SkinnedGraphMesh | null = null;
   preview: AttachPreview | null = null;
   state: SceneState | null = null;
@@ -77,6 +79,7 @@ export class Studio {
       onError: (m) => { this.panel.setProgress(null); this.panel.setMessage(m, true); },
     });
     this.uploader.bind(root, this.panel.fileInput);
+    this.jointMap = new JointMapControl(this.panel.root, (text, error) => this.panel.setMessage(text, error));
 
     const url = `${location.protocol === 'https:' ? 'wss' : 'ws'}://${location.host}${location.pathname.replace(/[^/]*$/, '')}ws`;
     this.socket = new StudioSocket(url, {
@@ -113,6 +116,7 @@ export class Studio {
         this.panel.setActive('sample', this.sampleUser(), undefined);
         this.panel.setActive('possess', this.possessing);
         this.panel.setActive('record', m.recording);
+        this.jointMap.show(m.joint_map);
         this.updateStatus();
         break;
       }

@@ -33,6 +33,7 @@ export interface SceneState {
   placement: PlacementState;
   users: UserState[];
   recording: boolean;
+  joint_map?: { name: string; sources: number } | null;
   solve_ms: number | null;
   error: string;
 }
