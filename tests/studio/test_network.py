@@ -246,3 +246,32 @@ def test_nats_restart_and_scene_loss(network, walk):
     assert len(logs) == 1
     on_disk = {seq for seq, _, _, _ in read_take_log(logs[0])}
     assert len(recorded_seen) >= 5 and recorded_seen <= on_disk  # every frame a viewer saw was recorded
+
+
+def test_page_says_scene_lost_and_recovers(network):
+    """The real page (Chromium) behind the gateway: "scene lost" in its status when the scene process is
+    killed, "the scene is back" when a new one starts."""
+    root = Path(__file__).resolve().parents[2]
+    assert (root / "src" / "kinetre" / "studio" / "static" / "index.html").is_file(), "run `make web` first"
+    config = {"url": f"{network['url']}/?token={A}&noshadows", "artifacts": str(root / "tests" / "e2e" / "artifacts")}
+    driver = subprocess.Popen(["node", str(root / "tests" / "e2e" / "driver_network.mjs"), json.dumps(config)],
+                              stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=root)
+    try:
+        lines = []
+        for line in driver.stdout:  # the driver paces the kills: READY → kill, LOST → restart
+            lines.append(line.strip())
+            if line.strip() == "READY":
+                network["scene"].kill()
+                network["scene"].wait(10)
+            elif line.strip() == "LOST":
+                network["scene"] = start_scene(network["nats"].url, network["tmp"])
+        driver.wait(120)
+    finally:
+        if driver.poll() is None:
+            driver.kill()
+    assert lines and lines[-1].startswith("{"), driver.stderr.read()[-2000:]
+    result = json.loads(lines[-1])
+    assert result["ok"], result
+    assert "scene lost" not in result["before"]["status"] and "connected as" in result["before"]["status"]
+    assert "scene lost" in result["lost"]["status"] and "scene lost" in result["lost"]["message"]
+    assert "scene lost" not in result["after"]["status"] and result["after"]["meshId"] is not None

@@ -109,6 +109,9 @@ class ClientStats:
     sent: int = 0
     acked: int = 0
     ack: asyncio.Event = field(default_factory=asyncio.Event)
+    transforms_sent: int = 0
+    transforms_skipped: int = 0  # scene frames this client never got: replaced by newer ones (latest wins)
+    transforms_seq: int = 0
 
 
 @dataclass
@@ -170,7 +173,9 @@ class Studio:
                 stats.ack.set()
             elif kind == "stats":
                 self.reply(client, {"type": "stats", "client": client, "received": stats.received,
-                                    "malformed": stats.malformed, "last_seq": stats.last_seq})
+                                    "malformed": stats.malformed, "last_seq": stats.last_seq,
+                                    "transforms_sent": stats.transforms_sent,
+                                    "transforms_skipped": stats.transforms_skipped})
             else:
                 raise ProtocolError(f"unknown message type {kind!r}")
         except ProtocolError as exc:
@@ -364,6 +369,9 @@ def create_app(mesh_path: str | None = None, nodes: int = NODES, sample_motion: 
                     continue  # other users' skeletons only for viewers that asked; a page draws its own
                 stats.sent += 1  # counted before the await: an ack may arrive before the send returns
                 if frame.subject == TRANSFORMS:
+                    if stats.transforms_seq and frame.seq > stats.transforms_seq + 1:
+                        stats.transforms_skipped += frame.seq - stats.transforms_seq - 1
+                    stats.transforms_seq, stats.transforms_sent = frame.seq, stats.transforms_sent + 1
                     await ws.send_bytes(frame.data)
                 else:
                     await ws.send_text(frame.data.decode())

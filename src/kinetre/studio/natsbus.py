@@ -16,9 +16,10 @@ Access is per room (*ours*): the NATS user is the room's name and its password t
 server's per-user permissions (`server_config`) confine that user to `kinetre.<room>.>`; request inboxes
 live inside the room too, so a reply never crosses rooms.
 
-Live subjects (skeletons, transforms, state) are latest-wins on both ends: a publisher that is ahead of
-its socket replaces the unsent frame of the same subject, and a frame older than the newest one
-delivered on its subject (smaller sequence number and capture time) is dropped as late. Frames
+Live subjects (skeletons, transforms, state) are latest-wins at the subscriber (a slow reader sees the
+newest frame of each subject), and a frame older than the newest one delivered on its subject (smaller
+sequence number and capture time) is dropped as late. Publishers send every frame, so a gap in a
+subject's sequence numbers at the receiver is a frame lost on the way (`BusCounters.gaps`). Frames
 published while the server is unreachable are dropped by policy (counted), never queued for replay.
 """
 from __future__ import annotations
@@ -81,10 +82,10 @@ def server_config(rooms: dict[str, str], port: int, host: str = "127.0.0.1", max
 @dataclass
 class BusCounters:
     published: int = 0
-    replaced: int = 0  # live frames replaced in the outbox before they went out (dropped by policy)
     offline: int = 0  # frames published while the server was unreachable (dropped by policy)
     received: int = 0
     late: int = 0  # frames older than the newest delivered on their subject (dropped by policy)
+    gaps: int = 0  # sequence numbers never delivered on live subjects (lost on the way, or a publisher restart)
     reconnects: int = 0
     errors: list[str] = field(default_factory=list)
 
@@ -105,10 +106,9 @@ class NatsChannels:
         self._subs: dict[str, object] = {}  # wire pattern → nats subscription (or the task creating it)
         self._local: dict[str, list[Subscription]] = {}  # wire pattern → our subscriptions
         self._newest: dict[str, tuple[int, float]] = {}  # subject → (seq, t) last delivered
-        self._outbox: dict[object, tuple[str, bytes]] = {}
+        self._outbox: list[tuple[str, bytes]] = []
         self._pending: asyncio.Event | None = None
         self._sender: asyncio.Task | None = None
-        self._n = 0
 
     @classmethod
     async def connect(cls, url: str, room: str = "main", token: str | None = None, name: str = "kinetre",
@@ -174,16 +174,7 @@ class NatsChannels:
         if self.nc is None or not self.nc.is_connected:
             self.counters.offline += 1
             return
-        subject = self.wire(frame.subject)
-        kind = frame.subject.split(".")[1] if frame.subject.count(".") else ""
-        if kind in LIVE_KINDS:
-            key = subject
-            if key in self._outbox:
-                self.counters.replaced += 1
-        else:
-            self._n += 1
-            key = self._n  # commands and replies: every one goes out, in order
-        self._outbox[key] = (subject, pack(frame))
+        self._outbox.append((self.wire(frame.subject), pack(frame)))
         self.counters.published += 1
         self._pending.set()
 
@@ -191,8 +182,8 @@ class NatsChannels:
         while True:
             await self._pending.wait()
             self._pending.clear()
-            batch, self._outbox = self._outbox, {}
-            for subject, payload in batch.values():
+            batch, self._outbox = self._outbox, []
+            for subject, payload in batch:
                 try:
                     await self.nc.publish(subject, payload)
                 except Exception as exc:  # closed or reconnecting: live data is dropped, not replayed
@@ -221,6 +212,8 @@ class NatsChannels:
                 if newest is not None and frame.seq <= newest[0] and frame.t <= newest[1]:
                     self.counters.late += 1
                     return
+                if newest is not None and frame.seq > newest[0] + 1:
+                    self.counters.gaps += frame.seq - newest[0] - 1
                 self._newest[frame.subject] = (frame.seq, frame.t)
             for sub in self._local.get(wire, ()):
                 sub._offer(frame)

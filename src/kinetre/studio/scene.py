@@ -100,6 +100,8 @@ class Scene:
         self._lock = asyncio.Lock()  # one attach/solve at a time; both run in a worker thread
         self._dirty = asyncio.Event()
         self._state_seq = 0
+        self.late = 0  # skeleton frames older than the user's newest (dropped)
+        self._skeletons = None  # the subscription, whose `skipped` counts frames merged latest-wins
         self.set_mesh(mesh, graph, name)
 
     # --- mesh and placement -------------------------------------------------------------------------
@@ -169,6 +171,7 @@ class Scene:
                 return
         user = self.user(client)
         if seq <= user.seq and user.frames:
+            self.late += 1
             return  # late or duplicate frame: skip, never reorder
         user.latest, user.seq, user.t = skeleton, seq, t
         user.frames += 1
@@ -237,7 +240,7 @@ class Scene:
     # --- the solve loop -----------------------------------------------------------------------------
     async def run(self) -> None:
         """Consume skeleton frames and publish transforms until cancelled."""
-        sub = self.hub.subscribe(SKELETONS)
+        sub = self._skeletons = self.hub.subscribe(SKELETONS)
         loop = asyncio.get_running_loop()
         helpers = [loop.create_task(self._feed(sub)), loop.create_task(self._heartbeat())]
         try:
@@ -327,6 +330,7 @@ class Scene:
                                                              "sources": len(self.joint_map.sources)},
             "solve_ms": float(np.median(self.solve_ms)) if self.solve_ms else None,
             "error": self.last_error,
+            "dropped": {"merged": self._skeletons.skipped if self._skeletons else 0, "late": self.late},
         }
 
     def publish_state(self) -> None:

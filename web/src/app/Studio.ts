@@ -43,6 +43,7 @@ export class Studio {
   readonly me = new SkeletonFigure(MY_COLOUR);
   readonly others = new Map<string, SkeletonFigure>();
   connected = false;
+  sceneLost = false;
   seq = 0;
   trackedJoints = 0;
   trackingLost = false;
@@ -104,6 +105,7 @@ export class Studio {
   private onMessage(m: ServerMessage): void {
     switch (m.type) {
       case 'state': {
+        if (this.sceneLostNotice(m)) break;
         const was = this.possessing;
         this.state = m;
         if (this.possessing !== was) {
@@ -287,8 +289,21 @@ export class Studio {
     return Boolean(this.state?.users.find((u) => u.client === 'sample')?.possessing);
   }
 
+  /** "scene lost" / "scene is back" once per change; true when the state carries no scene to show. */
+  private sceneLostNotice(m: SceneState): boolean {
+    if (Boolean(m.scene_lost) !== this.sceneLost) {
+      this.sceneLost = Boolean(m.scene_lost);
+      this.panel.setMessage(this.sceneLost ? 'scene lost: the scene process stopped answering; waiting for it…'
+        : 'the scene is back', this.sceneLost);
+      this.updateStatus();
+    }
+    return !m.mesh;
+  }
+
   private updateStatus(): void {
-    const parts = [this.connected ? `connected as ${this.socket.client}` : 'offline: reconnecting…'];
+    const offline = this.socket.refused ? `refused: ${this.socket.refused}` : 'offline: reconnecting…';
+    const parts = [this.connected ? `connected as ${this.socket.client}` : offline];
+    if (this.sceneLost) parts.push('scene lost');
     if (this.state) {
       parts.push(`${this.state.mesh.name} (${this.state.mesh.nodes} nodes)`);
       const drivers = this.state.users.filter((u) => u.possessing).map((u) => (u.client === this.socket.client ? 'you' : u.client));

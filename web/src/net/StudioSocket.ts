@@ -14,6 +14,8 @@ export class StudioSocket {
   private closed = false;
   sentFrames = 0;
   droppedFrames = 0;
+  sceneLost = false; // the studio says its scene (a `kinetre scene` process) stopped answering
+  refused = ''; // why the studio closed the socket for good (a room token missing or wrong)
 
   constructor(private readonly url: string, private readonly handlers: SocketHandlers) {}
 
@@ -21,9 +23,10 @@ export class StudioSocket {
     const ws = new WebSocket(this.url);
     ws.binaryType = 'arraybuffer';
     ws.onopen = () => this.handlers.onConnection(true);
-    ws.onclose = () => {
+    ws.onclose = (event: CloseEvent) => {
+      if (event.code === 4401) this.refused = event.reason || 'this room needs its token';
       this.handlers.onConnection(false);
-      if (!this.closed) setTimeout(() => this.connect(), 1000);
+      if (!this.closed && !this.refused) setTimeout(() => this.connect(), 1000);
     };
     let received = 0;
     ws.onmessage = (event: MessageEvent) => {
@@ -37,6 +40,7 @@ export class StudioSocket {
       }
       const message = JSON.parse(event.data as string) as ServerMessage;
       if (message.type === 'welcome') this.client = message.client;
+      if (message.type === 'state') this.sceneLost = Boolean(message.scene_lost);
       this.handlers.onMessage(message);
     };
     this.ws = ws;

@@ -36,6 +36,7 @@ export interface SceneState {
   joint_map?: { name: string; sources: number } | null;
   solve_ms: number | null;
   error: string;
+  scene_lost?: boolean; // set by a studio whose remote scene stopped answering (mesh is null if never heard)
 }
 
 export type ServerMessage =
