@@ -181,7 +181,7 @@ def test_split_reproduces_the_full_gauss_newton_system(armadillo):
     data, _ = ne.system(x, parts, ne.const_data + ne.constraint_data(active), active)
     full = ne.matrix(data)
     split = CoordinateSplit(ne)
-    (kp, ki, kx), _ = split.for_active(active)
+    (kp, ki, kx), _, _ = split.for_active(active)
     bridges = ne.bridges
     rot = np.zeros((g.node_count, 9, 9))
     rig = np.zeros((len(bridges), 18, 18))
@@ -211,3 +211,23 @@ def test_pcg_converges_to_the_exact_gauss_newton_minimum(armadillo, settings):
     pose = lambda x: kinetre.GraphPose(x[:, :9].reshape(-1, 3, 3), x[:, 9:])  # noqa: E731
     moved = kinetre.skin(m, g, pose(rep.x)) - kinetre.skin(m, g, pose(exact.x))
     assert np.abs(moved).max() < 1e-3 * m.diagonal
+
+
+def test_fused_energy_and_gradient_match_the_sparse_forms(armadillo):
+    from kinetre.deform.gradient import energy_gradient
+    from kinetre.deform.krylov import to_coordinate_layout
+    m, g = armadillo
+    cons, targets = _bend(g)
+    weights = EnergyWeights(rot=1.3, reg=7.0, con=90.0, rig=2.0)
+    bridges = g.edges[np.arange(0, len(g.edges), 7)]  # more bridges than the graph has, to exercise E_rig
+    ne = NormalEquations.build(g.nodes, g.edges, bridges, cons, weights)
+    rng = np.random.default_rng(2)
+    x = identity_x(g.node_count) + 0.1 * rng.standard_normal((g.node_count, 12))
+    active = (rng.uniform(size=len(cons)) > 0.3).astype(float)
+    parts = ne.residuals(x, targets, active)
+    _, want = ne.system(x, parts, None, active)
+    grad = np.empty(12 * g.node_count)
+    e = energy_gradient(x, ne.g, ne.edges, cons.nodes, cons.weights, cons.points, targets, active,
+                        ne.bridges, weights.rot, weights.reg, weights.con, weights.rig, grad, True)
+    assert e == pytest.approx(ne.energy(parts), rel=1e-12)
+    assert np.allclose(grad, to_coordinate_layout(want), rtol=1e-10, atol=1e-10 * np.abs(want).max())

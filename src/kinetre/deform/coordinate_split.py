@@ -102,7 +102,8 @@ class CoordinateSplit:
         return self.const_data + self.w_con * _scatter(self.indptr, self.indices, 4 * self.nodes, m)
 
     def for_active(self, active: np.ndarray):
-        """(K as CSR arrays (indptr, indices, data), factor tuple for `krylov`) for this tracked set."""
+        """(K as CSR arrays (indptr, indices, data), factor tuple for `krylov`, K's (N, 4, 4) diagonal
+        blocks) for this tracked set."""
         key = np.asarray(active, dtype=np.float64).tobytes()
         hit = self._cache.get(key)
         if hit is not None:
@@ -112,11 +113,19 @@ class CoordinateSplit:
         k = (self.indptr, self.indices, data)  # symmetric: CSC arrays are CSR arrays too
         shifted = self._matrix(data + self.shift_data)
         self.factorisations += 1
-        hit = (k, self._factor(shifted))
+        hit = (k, self._factor(shifted), self._node_blocks(data))
         self._cache[key] = hit
         if len(self._cache) > self.CACHE:
             self._cache.popitem(last=False)
         return hit
+
+    def _node_blocks(self, data: np.ndarray) -> np.ndarray:
+        """K's (N, 4, 4) diagonal blocks (node j's own 4 unknowns per coordinate)."""
+        col = np.repeat(np.arange(4 * self.nodes), np.diff(self.indptr))
+        own = (col // 4) == (self.indices // 4)
+        out = np.zeros((self.nodes, 4, 4))
+        out[col[own] // 4, self.indices[own] % 4, col[own] % 4] = data[own]
+        return out
 
     def _factor(self, matrix: csc_matrix):
         """(Lp, Li, Lx, Up, Ui, Ux, row_perm, col_perm) with matrix[row_perm][:, col_perm] = L U."""

@@ -18,10 +18,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from .jacobian import ROT_PAIRS
-
-_ROT_P = np.array([p for p, _ in ROT_PAIRS], dtype=np.int64)
-_ROT_Q = np.array([q for _, q in ROT_PAIRS], dtype=np.int64)
+from .normal_equations import rigidity_block_jacobian
 
 COORDINATE, BLOCK_JACOBI, TWO_LEVEL, ADDITIVE = 0, 1, 2, 3
 
@@ -41,42 +38,42 @@ def from_coordinate_layout(y: np.ndarray) -> np.ndarray:
 
 
 @njit(cache=True)
+def _gram(jac, w, out):
+    """out = w jacᵀ jac."""
+    for u in range(jac.shape[1]):
+        for v in range(u, jac.shape[1]):
+            s = 0.0
+            for r in range(jac.shape[0]):
+                s += jac[r, u] * jac[r, v]
+            out[u, v] = w * s
+            out[v, u] = w * s
+
+
+@njit(cache=True)
 def local_blocks(R, bridges, w_rot, w_rig, rot_out, rig_out):
     """Gauss-Newton blocks JᵀJ of E_rot per node (N, 9, 9) and of E_rig's R_kᵀR_j − I per bridge
-    (B, 18, 18, [R_j | R_k]), in the coordinate layout (R entry (a, b) at 3 b + a)."""
-    jac = np.zeros((6, 9))
+    (B, 18, 18, [R_j | R_k]), in the coordinate layout (R entry (a, b) at 3 b + a).
+
+    E_rot's block in closed form: with c_b the columns of R_j (contiguous in this layout), the 3×3
+    block (b, b') is c_b' c_bᵀ for b ≠ b' and 4 c_b c_bᵀ + Σ_{q≠b} c_q c_qᵀ on the diagonal.
+    """
     for j in range(R.shape[0]):
-        jac[:] = 0.0
-        for r in range(6):
-            p = _ROT_P[r]
-            q = _ROT_Q[r]
-            for a in range(3):
-                jac[r, 3 * p + a] += R[j, a, q]
-                jac[r, 3 * q + a] += R[j, a, p]
-        for u in range(9):
-            for v in range(u, 9):
-                s = 0.0
-                for r in range(6):
-                    s += jac[r, u] * jac[r, v]
-                rot_out[j, u, v] = w_rot * s
-                rot_out[j, v, u] = w_rot * s
+        out = rot_out[j]
+        for b in range(3):
+            for bb in range(3):
+                for a in range(3):
+                    for aa in range(3):
+                        if b != bb:
+                            out[3 * b + a, 3 * bb + aa] = w_rot * R[j, a, bb] * R[j, aa, b]
+                        else:
+                            s = 3.0 * R[j, a, b] * R[j, aa, b]
+                            for q in range(3):
+                                s += R[j, a, q] * R[j, aa, q]
+                            out[3 * b + a, 3 * b + aa] = w_rot * s
     jr = np.zeros((9, 18))
     for e in range(bridges.shape[0]):
-        j = bridges[e, 0]
-        k = bridges[e, 1]
-        jr[:] = 0.0
-        for a in range(3):
-            for b in range(3):
-                for c in range(3):
-                    jr[3 * a + b, 3 * b + c] += R[k, c, a]       # d/dR_j[c, b]
-                    jr[3 * a + b, 9 + 3 * a + c] += R[j, c, b]   # d/dR_k[c, a]
-        for u in range(18):
-            for v in range(u, 18):
-                s = 0.0
-                for r in range(9):
-                    s += jr[r, u] * jr[r, v]
-                rig_out[e, u, v] = w_rig * s
-                rig_out[e, v, u] = w_rig * s
+        rigidity_block_jacobian(R, bridges[e, 0], bridges[e, 1], True, jr)
+        _gram(jr, w_rig, rig_out[e])
 
 
 @njit(cache=True)
@@ -117,31 +114,32 @@ def _hessian_times(kp, ki, kx, rot, rig, bridges, damp, y, out):
 
 
 @njit(cache=True)
-def node_factors(kp, ki, kx, rot, rig, bridges, damp, out):
-    """Cholesky factors (lower, in place in `out` (N, 12, 12)) of H's diagonal 12×12 node blocks."""
+def node_factors(k_blocks, rot, rig, bridges, damp, out):
+    """Cholesky factors (lower, in `out` (N, 12, 12)) of H's diagonal 12×12 node blocks; `k_blocks`
+    (N, 4, 4) are K's diagonal blocks."""
     n = rot.shape[0]
-    out[:] = 0.0
     for j in range(n):
+        a = out[j]
+        for u in range(12):
+            for v in range(12):
+                a[u, v] = 0.0
         for b in range(4):
-            i = 4 * j + b
-            for p in range(kp[i], kp[i + 1]):
-                c = ki[p]
-                if c // 4 != j:
-                    continue
-                bb = c - 4 * j
-                for a in range(3):
-                    out[j, 3 * b + a, 3 * bb + a] += kx[p]
+            for bb in range(4):
+                w = k_blocks[j, b, bb]
+                a[3 * b, 3 * bb] = w
+                a[3 * b + 1, 3 * bb + 1] = w
+                a[3 * b + 2, 3 * bb + 2] = w
         for u in range(9):
             for v in range(9):
-                out[j, u, v] += rot[j, u, v]
+                a[u, v] += rot[j, u, v]
         for u in range(12):
-            out[j, u, u] += damp[12 * j + u]
+            a[u, u] += damp[12 * j + u]
     for e in range(bridges.shape[0]):
         for s in range(2):
-            j = bridges[e, s]
+            a = out[bridges[e, s]]
             for u in range(9):
                 for v in range(9):
-                    out[j, u, v] += rig[e, 9 * s + u, 9 * s + v]
+                    a[u, v] += rig[e, 9 * s + u, 9 * s + v]
     for j in range(n):
         a = out[j]
         for c in range(12):
@@ -150,11 +148,14 @@ def node_factors(kp, ki, kx, rot, rig, bridges, damp, out):
                 d -= a[c, k] * a[c, k]
             d = np.sqrt(d) if d > 0.0 else 1e-300
             a[c, c] = d
+            inv = 1.0 / d
             for r in range(c + 1, 12):
                 s = a[r, c]
                 for k in range(c):
                     s -= a[r, k] * a[c, k]
-                a[r, c] = s / d
+                a[r, c] = s * inv
+        for c in range(12):  # keep reciprocals on the diagonal: the solves multiply
+            a[c, c] = 1.0 / a[c, c]
 
 
 @njit(cache=True)
@@ -168,12 +169,12 @@ def _node_solve(factors, r, out):
             s = r[o + c]
             for k in range(c):
                 s -= a[c, k] * z[k]
-            z[c] = s / a[c, c]
+            z[c] = s * a[c, c]
         for c in range(11, -1, -1):
             s = z[c]
             for k in range(c + 1, 12):
                 s -= a[k, c] * z[k]
-            z[c] = s / a[c, c]
+            z[c] = s * a[c, c]
             out[o + c] = z[c]
 
 

@@ -63,6 +63,9 @@ class NormalEquations:
     j_con: csr_matrix
     b_con: np.ndarray        # constant part of the constraint residual before subtracting q
     weights: EnergyWeights
+    g: np.ndarray | None = None                      # the terms' raw data, for `gradient.energy_gradient`
+    edges: np.ndarray | None = None
+    constraints: PointConstraints | None = None
 
     @staticmethod
     def build(g: np.ndarray, edges: np.ndarray, bridge_edges: np.ndarray, constraints: PointConstraints,
@@ -109,9 +112,10 @@ class NormalEquations:
         b_gap = (g[b[:, 0]] - g[b[:, 1]]).reshape(-1)
         b_con = np.einsum("lk,lka->la", constraints.weights, g[constraints.nodes]).reshape(-1) \
             if len(constraints) else np.zeros(0)
-        return NormalEquations(n, indptr, indices, rot_pos, rig_pos, diag_pos, b, 
+        return NormalEquations(n, indptr, indices, rot_pos, rig_pos, diag_pos, b,
                                _scatter(indptr, indices, n, const), j_reg.tocsr(), b_reg, j_gap.tocsr(), b_gap,
-                               j_con.tocsr(), b_con, weights)
+                               j_con.tocsr(), b_con, weights, np.ascontiguousarray(g, dtype=np.float64),
+                               np.ascontiguousarray(edges, dtype=np.int64), constraints)
 
     def constraint_data(self, active: np.ndarray) -> np.ndarray:
         """w_con J_conᵀ S² J_con on the pattern, for the per-constraint scales `active` (L,)."""
@@ -168,6 +172,30 @@ class NormalEquations:
 
 
 @njit(cache=True)
+def rotation_block_jacobian(R, j, coordinate, jac):
+    """Eq. 3's (6, 9) Jacobian of node j over its R entries: R[a, b] at 3 a + b, or at 3 b + a in the
+    `coordinate` layout of `krylov.py`. d(c_p·c_q)/dR[a, p] = R[a, q] and d/dR[a, q] = R[a, p]."""
+    jac[:] = 0.0
+    for r in range(6):
+        p = _ROT_P[r]
+        q = _ROT_Q[r]
+        for a in range(3):
+            jac[r, 3 * p + a if coordinate else 3 * a + p] += R[j, a, q]
+            jac[r, 3 * q + a if coordinate else 3 * a + q] += R[j, a, p]
+
+
+@njit(cache=True)
+def rigidity_block_jacobian(R, j, k, coordinate, jac):
+    """(9, 18) Jacobian of R_kᵀR_j − I (Eq. 7) over [R_j | R_k], layouts as `rotation_block_jacobian`."""
+    jac[:] = 0.0
+    for a in range(3):
+        for b in range(3):
+            for c in range(3):
+                jac[3 * a + b, 3 * b + c if coordinate else 3 * c + b] += R[k, c, a]           # d/dR_j[c, b]
+                jac[3 * a + b, 9 + (3 * a + c if coordinate else 3 * c + a)] += R[j, c, b]     # d/dR_k[c, a]
+
+
+@njit(cache=True)
 def _nonlinear_residuals(R, bridges):
     n = R.shape[0]
     r_rot = np.empty(6 * n)
@@ -193,13 +221,7 @@ def _nonlinear_residuals(R, bridges):
 def _add_rotation(data, grad, rot_pos, R, r_rot, w, hessian):
     jac = np.zeros((6, 9))
     for j in range(R.shape[0]):
-        jac[:] = 0.0
-        for r in range(6):
-            p = _ROT_P[r]
-            q = _ROT_Q[r]
-            for a in range(3):
-                jac[r, 3 * a + p] += R[j, a, q]
-                jac[r, 3 * a + q] += R[j, a, p]
+        rotation_block_jacobian(R, j, False, jac)
         for u in range(9):
             gu = 0.0
             for r in range(6):
@@ -220,12 +242,7 @@ def _add_rigidity(data, grad, rig_pos, bridges, R, r_rig, w, hessian):
     for e in range(bridges.shape[0]):
         j = bridges[e, 0]
         k = bridges[e, 1]
-        jac[:] = 0.0
-        for a in range(3):
-            for b in range(3):
-                for c in range(3):
-                    jac[3 * a + b, 3 * c + b] += R[k, c, a]       # d/dR_j[c, b]
-                    jac[3 * a + b, 9 + 3 * c + a] += R[j, c, b]   # d/dR_k[c, a]
+        rigidity_block_jacobian(R, j, k, False, jac)
         for u in range(18):
             gu = 0.0
             for r in range(9):

@@ -20,8 +20,8 @@ import numpy as np
 
 from .coordinate_split import CoordinateSplit
 from .factor import NotPositiveDefinite, ReusedCholesky
-from .krylov import BLOCK_JACOBI, COORDINATE, TWO_LEVEL, from_coordinate_layout, local_blocks, node_factors, \
-    pcg, to_coordinate_layout
+from .krylov import BLOCK_JACOBI, COORDINATE, TWO_LEVEL
+from .newton_krylov import gauss_newton_pcg
 from .normal_equations import NormalEquations
 
 PRECONDITIONERS = {"coordinate": COORDINATE, "block_jacobi": BLOCK_JACOBI, "two_level": TWO_LEVEL}
@@ -200,62 +200,19 @@ class GaussNewton:
         s = self.settings
         sysm = self.system
         w = sysm.weights
+        cons = sysm.constraints
         before = self.split.factorisations
-        k, fac = self.split.for_active(active)
-        kind = PRECONDITIONERS[s.preconditioner]
-        k_diag = np.repeat(k[2][self.split.diag_pos], 3)
-        x = x0.copy()
-        parts = sysm.residuals(x, targets, active)
-        energy = sysm.energy(parts)
-        energies = [energy]
+        k, fac, k_blocks = self.split.for_active(active)
+        x = np.array(x0, dtype=np.float64, order="C")
+        energies = np.empty(s.max_iterations + 1)
         lam = self._lam if self._lam is not None else s.initial_damping
-        nu = 2.0
-        iterations = accepted = cg_total = 0
-        rot, rig, bridges = self._rot, self._rig, sysm.bridges
-        while iterations < s.max_iterations and energy > self.energy_floor:
-            _, grad = sysm.system(x, parts, None, active)
-            gy = to_coordinate_layout(grad)
-            local_blocks(x[:, :9].reshape(-1, 3, 3), bridges, w.rot, w.rig, rot, rig)
-            diag = k_diag.copy().reshape(-1, 12)
-            diag[:, :9] += np.einsum("juu->ju", rot)
-            if len(bridges):
-                np.add.at(diag[:, :9], bridges[:, 0], np.einsum("euu->eu", rig[:, :9, :9]))
-                np.add.at(diag[:, :9], bridges[:, 1], np.einsum("euu->eu", rig[:, 9:, 9:]))
-            diag = np.maximum(diag.reshape(-1), 1e-9 * max(diag.max(), 1e-300))
-            if gy @ (gy / diag) <= 1e-2 * s.relative_tolerance * energy:
-                break
-            stepped = False
-            while iterations < s.max_iterations:
-                iterations += 1
-                damp = lam * diag
-                if kind != COORDINATE:
-                    node_factors(k[0], k[1], k[2], rot, rig, bridges, damp, self._node_fac)
-                dy, it = pcg(kind, fac, k[0], k[1], k[2], rot, rig, bridges, damp, self._node_fac, -gy,
-                             s.cg_iterations, s.cg_tolerance)
-                cg_total += it
-                predicted = -(gy @ dy)
-                if not predicted > 1e-3 * s.relative_tolerance * energy:
-                    break
-                x_new = x + from_coordinate_layout(dy)
-                parts_new = sysm.residuals(x_new, targets, active)
-                e_new = sysm.energy(parts_new)
-                if np.isfinite(e_new) and e_new < energy:
-                    decrease = energy - e_new
-                    rho = decrease / max(predicted, 1e-300)
-                    lam = max(lam * max(1.0 / 3.0, 1.0 - (2.0 * rho - 1.0) ** 3), 1e-12)
-                    nu = 2.0
-                    x, parts, energy = x_new, parts_new, e_new
-                    energies.append(energy)
-                    accepted += 1
-                    stepped = True
-                    break
-                lam = max(lam, 1e-6) * nu
-                nu *= 2.0
-                if lam > s.max_damping:
-                    break
-            if not stepped or decrease <= s.relative_tolerance * energies[-2]:
-                break
+        energy, iterations, accepted, cg_total, count, lam = gauss_newton_pcg(
+            x, sysm.g, sysm.edges, cons.nodes, cons.weights, cons.points,
+            np.ascontiguousarray(targets, dtype=np.float64), np.ascontiguousarray(active, dtype=np.float64),
+            sysm.bridges, w.rot, w.reg, w.con, w.rig, PRECONDITIONERS[s.preconditioner], fac, k[0], k[1], k[2],
+            k_blocks, k[2][self.split.diag_pos], s.max_iterations, s.relative_tolerance, s.cg_iterations,
+            s.cg_tolerance, lam, s.max_damping, self.energy_floor, self._rot, self._rig, self._node_fac, energies)
         self._lam = min(max(lam, s.initial_damping), 1e3)
         return SolveReport(x=x, energy=energy, iterations=iterations, accepted=accepted,
-                           energies=tuple(energies), factorisations=self.split.factorisations - before,
+                           energies=tuple(energies[:count]), factorisations=self.split.factorisations - before,
                            cg_iterations=cg_total)

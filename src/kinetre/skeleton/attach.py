@@ -10,6 +10,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from numba import njit
 from scipy.spatial import cKDTree
 
 from ..deform.constraints import PointConstraints
@@ -191,64 +192,92 @@ def bone_rotations(bind: Skeleton, frame: Skeleton, reference: np.ndarray) -> np
     minimal rotation alone. Under a rigid motion of the whole skeleton every bone gets exactly that
     rotation.
     """
-    bones = frame.model.bones
+    bones = np.asarray(frame.model.bones, dtype=np.int64)
+    return _bone_rotations(np.asarray(bind.positions, dtype=np.float64), np.asarray(frame.positions, dtype=np.float64),
+                           np.asarray(frame.tracked, dtype=np.bool_), bones, np.asarray(reference, dtype=np.int64),
+                           _parent_bones(frame.model))
 
-    def unit(v):
-        n = np.linalg.norm(v, axis=-1, keepdims=True)
-        ok = (n[..., 0] > 1e-12) & np.isfinite(n[..., 0])  # an untracked joint may sit at inf
-        with np.errstate(invalid="ignore"):
-            return np.where(ok[..., None], v / np.where(ok[..., None], n, 1.0), 0.0), ok
 
-    u0, _ = unit(bind.positions[bones[:, 1]] - bind.positions[bones[:, 0]])
-    u1, ok1 = unit(frame.positions[bones[:, 1]] - frame.positions[bones[:, 0]])
-    ok1 &= frame.tracked[bones[:, 0]] & frame.tracked[bones[:, 1]]
-    u1 = np.where(ok1[:, None], u1, u0)
-    rot = minimal_rotation(u0, u1)
-    has = reference >= 0
-    if has.any():
-        rb = bones[reference[has]]
-        tracked = frame.tracked[rb[:, 0]] & frame.tracked[rb[:, 1]] & ok1[has]
-        r0 = bind.positions[rb[:, 1]] - bind.positions[rb[:, 0]]
-        r1 = frame.positions[rb[:, 1]] - frame.positions[rb[:, 0]]
-        w0, ok_w0 = unit(r0 - np.einsum("ni,ni->n", r0, u0[has])[:, None] * u0[has])
-        w1, ok_w1 = unit(r1 - np.einsum("ni,ni->n", r1, u1[has])[:, None] * u1[has])
-        f0 = np.stack([u0[has], w0, np.cross(u0[has], w0)], axis=2)
-        f1 = np.stack([u1[has], w1, np.cross(u1[has], w1)], axis=2)
-        use = tracked & ok_w0 & ok_w1
-        sub = rot[has]
-        sub[use] = np.einsum("nij,nkj->nik", f1, f0)[use]
-        rot[has] = sub
-        has = has.copy()
-        has[np.flatnonzero(has)[~use]] = False
-    # parents come before children in the model's joint order, so one pass sees every parent first
-    parent_bone = {int(c): b for b, (_, c) in enumerate(bones)}
-    for b, (p, _) in enumerate(bones):
-        pb = parent_bone.get(int(p))
-        if has[b] or pb is None or not ok1[b]:
+def _parent_bones(model) -> np.ndarray:
+    """Per bone, the bone ending at its first joint (-1 at the root)."""
+    bones = np.asarray(model.bones, dtype=np.int64)
+    by_child = np.full(len(model.joints), -1, np.int64)
+    by_child[bones[:, 1]] = np.arange(len(bones))
+    return by_child[bones[:, 0]]
+
+
+@njit(cache=True)
+def _unit(v):
+    """(v / |v|, True), or (0, False) for a zero, tiny or non-finite v (an untracked joint may sit at inf)."""
+    n = np.sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2])
+    if n > 1e-12 and np.isfinite(n):
+        return v / n, True
+    return np.zeros(3), False
+
+
+@njit(cache=True)
+def _bone_rotations(bind, pos, tracked, bones, reference, parent_bone):
+    nb = bones.shape[0]
+    rot = np.empty((nb, 3, 3))
+    u0 = np.empty((nb, 3))
+    u1 = np.empty((nb, 3))
+    ok1 = np.empty(nb, np.bool_)
+    own = np.zeros(nb, np.bool_)
+    for b in range(nb):
+        u0[b], _ = _unit(bind[bones[b, 1]] - bind[bones[b, 0]])
+        u, ok = _unit(pos[bones[b, 1]] - pos[bones[b, 0]])
+        ok1[b] = ok and tracked[bones[b, 0]] and tracked[bones[b, 1]]
+        u1[b] = u if ok1[b] else u0[b]
+        rot[b] = _minimal_rotation_one(u0[b], u1[b])
+    f0 = np.empty((3, 3))
+    f1 = np.empty((3, 3))
+    for b in range(nb):
+        r = reference[b]
+        if r < 0 or not (tracked[bones[r, 0]] and tracked[bones[r, 1]] and ok1[b]):
             continue
-        carried = rot[pb] @ u0[b]
-        rot[b] = minimal_rotation(carried, u1[b]) @ rot[pb]
+        r0 = bind[bones[r, 1]] - bind[bones[r, 0]]
+        r1 = pos[bones[r, 1]] - pos[bones[r, 0]]
+        w0, ok_w0 = _unit(r0 - (r0 @ u0[b]) * u0[b])
+        w1, ok_w1 = _unit(r1 - (r1 @ u1[b]) * u1[b])
+        if not (ok_w0 and ok_w1):
+            continue
+        f0[:, 0], f0[:, 1], f0[:, 2] = u0[b], w0, np.cross(u0[b], w0)
+        f1[:, 0], f1[:, 1], f1[:, 2] = u1[b], w1, np.cross(u1[b], w1)
+        rot[b] = f1 @ f0.T
+        own[b] = True
+    # parents come before children in the model's joint order, so one pass sees every parent first
+    for b in range(nb):
+        pb = parent_bone[b]
+        if own[b] or pb < 0 or not ok1[b]:
+            continue
+        rot[b] = _minimal_rotation_one(rot[pb] @ u0[b], u1[b]) @ rot[pb]
     return rot
 
 
 def minimal_rotation(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """(…, 3, 3) rotations taking unit vectors a to b by the smallest angle (Rodrigues)."""
+    a, b = np.broadcast_arrays(np.asarray(a, dtype=np.float64), np.asarray(b, dtype=np.float64))
+    flat_a, flat_b = a.reshape(-1, 3), b.reshape(-1, 3)
+    out = np.empty((len(flat_a), 3, 3))
+    for i in range(len(flat_a)):
+        out[i] = _minimal_rotation_one(flat_a[i], flat_b[i])
+    return out.reshape(a.shape[:-1] + (3, 3))
+
+
+@njit(cache=True)
+def _minimal_rotation_one(a, b):
+    """`minimal_rotation` for one pair of unit vectors."""
     v = np.cross(a, b)
-    c = np.einsum("...i,...i->...", a, b)
-    s2 = np.einsum("...i,...i->...", v, v)
-    k = np.zeros(v.shape[:-1] + (3, 3))
-    k[..., 0, 1], k[..., 0, 2], k[..., 1, 2] = -v[..., 2], v[..., 1], -v[..., 0]
-    k[..., 1, 0], k[..., 2, 0], k[..., 2, 1] = v[..., 2], -v[..., 1], v[..., 0]
-    with np.errstate(divide="ignore", invalid="ignore"):
-        f = np.where(s2 > 1e-24, (1 - c) / np.where(s2 > 1e-24, s2, 1.0), 0.5)
-    r = np.eye(3) + k + f[..., None, None] * (k @ k)
-    # opposite directions: a half turn about any axis perpendicular to a
-    flip = (c < -1 + 1e-12) & (s2 <= 1e-24)
-    if np.any(flip):
-        for i in zip(*np.nonzero(flip)) if flip.ndim else [()]:
-            u, _ = _frame(a[i])
-            r[i] = 2 * np.outer(u, u) - np.eye(3)
-    return r
+    c = a @ b
+    s2 = v @ v
+    if c < -1 + 1e-12 and s2 <= 1e-24:  # opposite: a half turn about an axis perpendicular to a
+        h = np.array([1.0, 0.0, 0.0]) if abs(a[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
+        u = np.cross(a, h)
+        u /= np.sqrt(u @ u)
+        return 2.0 * np.outer(u, u) - np.eye(3)
+    k = np.array([[0.0, -v[2], v[1]], [v[2], 0.0, -v[0]], [-v[1], v[0], 0.0]])
+    f = (1 - c) / s2 if s2 > 1e-24 else 0.5
+    return np.eye(3) + k + f * (k @ k)
 
 
 def constraint_targets(att: SkeletonAttachment, frame: Skeleton) -> tuple[np.ndarray, np.ndarray]:
@@ -259,32 +288,35 @@ def constraint_targets(att: SkeletonAttachment, frame: Skeleton) -> tuple[np.nda
     is one), moves with the parent joint, and slides along the bone with
     its length (ours: so samples near the child joint stay with it when tracked lengths vary).
     """
-    n = len(att.constraints)
+    pos = np.asarray(frame.positions, dtype=np.float64)
+    tracked = np.asarray(frame.tracked, dtype=np.bool_)
+    rot = bone_rotations(att.bind, frame, att.twist_reference) if (att.bone >= 0).any() else np.zeros((0, 3, 3))
+    return _targets(att.joint, att.bone, att.offset, att.constraints.points, np.asarray(att.bind.positions, np.float64),
+                    pos, tracked, np.asarray(frame.model.bones, dtype=np.int64), rot)
+
+
+@njit(cache=True)
+def _targets(joint, bone, offset, points, bind, pos, tracked, bones, rot):
+    n = joint.shape[0]
     q = np.zeros((n, 3))
-    ok = np.zeros(n, dtype=bool)
-    pos, tracked = frame.positions, frame.tracked
-    js = att.joint >= 0
-    q[js] = pos[att.joint[js]]
-    ok[js] = tracked[att.joint[js]]
-    bs = np.flatnonzero(att.bone >= 0)
-    if bs.size:
-        bones = frame.model.bones[att.bone[bs]]
-        p0 = att.bind.positions[bones[:, 0]]
-        d0 = att.bind.positions[bones[:, 1]] - p0
-        p1 = pos[bones[:, 0]]
-        d1 = pos[bones[:, 1]] - p1
-        good = tracked[bones[:, 0]] & tracked[bones[:, 1]]
-        l0 = np.linalg.norm(d0, axis=1)
-        l1 = np.linalg.norm(d1, axis=1)
-        good &= l1 > 1e-9
-        u0 = d0 / l0[:, None]
-        rot = bone_rotations(att.bind, frame, att.twist_reference)[att.bone[bs]]
-        off = att.offset[bs]
-        axial = np.einsum("ni,ni->n", off, u0)
-        radial = off - axial[:, None] * u0
-        scaled = radial + (axial * np.where(good, l1 / l0, 1.0))[:, None] * u0
-        q[bs] = p1 + np.einsum("nij,nj->ni", rot, scaled)
-        ok[bs] = good
-    ok &= np.isfinite(q).all(axis=1)
-    q[~ok] = att.constraints.points[~ok]
+    ok = np.zeros(n, np.bool_)
+    for i in range(n):
+        if joint[i] >= 0:
+            q[i] = pos[joint[i]]
+            ok[i] = tracked[joint[i]]
+        elif bone[i] >= 0:
+            p, c = bones[bone[i], 0], bones[bone[i], 1]
+            d0 = bind[c] - bind[p]
+            d1 = pos[c] - pos[p]
+            l0 = np.sqrt(d0 @ d0)
+            l1 = np.sqrt(d1 @ d1)
+            good = tracked[p] and tracked[c] and l1 > 1e-9
+            u0 = d0 / l0
+            axial = offset[i] @ u0
+            scaled = offset[i] - axial * u0 + (axial * (l1 / l0 if good else 1.0)) * u0
+            q[i] = pos[p] + rot[bone[i]] @ scaled
+            ok[i] = good
+        ok[i] = ok[i] and np.isfinite(q[i, 0]) and np.isfinite(q[i, 1]) and np.isfinite(q[i, 2])
+        if not ok[i]:
+            q[i] = points[i]
     return q, ok

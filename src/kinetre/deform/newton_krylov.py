@@ -1,0 +1,110 @@
+"""The damped Gauss-Newton loop of `solver.py` with its steps from `krylov.pcg`, all in one numba call.
+
+Same rules as the exact loop: a step is accepted only when it lowers E (else λ grows, Nielsen), the
+loop ends after `max_iterations` linear solves, when an accepted step lowers E by less than
+`relative_tolerance` of it, or when a Jacobi estimate of the remaining decrease is negligible. Kept
+in numba because at 2 ms per frame the Python bookkeeping of a few iterations would be most of it.
+"""
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+from .gradient import energy_gradient
+from .krylov import COORDINATE, local_blocks, node_factors, pcg
+
+
+@njit(cache=True)
+def gauss_newton_pcg(x, g, edges, con_nodes, con_weights, con_points, targets, active, bridges,
+                     w_rot, w_reg, w_con, w_rig, kind, fac, kp, ki, kx, k_blocks, k_diag,
+                     max_iterations, relative_tolerance, cg_iterations, cg_tolerance, lam, max_damping,
+                     energy_floor, rot, rig, node_fac, energies):
+    """Minimise E from x (N, 12, updated in place). Returns (E, iterations, accepted, CG iterations,
+    number of entries written to `energies` (E after each accepted step, from the initial E), λ)."""
+    n = x.shape[0]
+    m = 12 * n
+    grad = np.empty(m)
+    neg = np.empty(m)
+    diag = np.empty(m)
+    damp = np.empty(m)
+    x_new = np.empty_like(x)
+    R = np.empty((n, 3, 3))
+    energy = energy_gradient(x, g, edges, con_nodes, con_weights, con_points, targets, active, bridges,
+                             w_rot, w_reg, w_con, w_rig, grad, True)
+    energies[0] = energy
+    count = 1
+    nu = 2.0
+    iterations = accepted = cg_total = 0
+    decrease = 0.0
+    while iterations < max_iterations and energy > energy_floor:
+        if accepted > 0:
+            energy_gradient(x, g, edges, con_nodes, con_weights, con_points, targets, active, bridges,
+                            w_rot, w_reg, w_con, w_rig, grad, True)
+        for j in range(n):
+            for a in range(3):
+                for b in range(3):
+                    R[j, a, b] = x[j, 3 * a + b]
+        local_blocks(R, bridges, w_rot, w_rig, rot, rig)
+        # diag(JᵀJ) for the damping, floored so a node the terms barely see still gets some
+        top = 0.0
+        for i in range(m):
+            diag[i] = k_diag[i // 3]
+        for j in range(n):
+            for u in range(9):
+                diag[12 * j + u] += rot[j, u, u]
+        for e in range(bridges.shape[0]):
+            for u in range(9):
+                diag[12 * bridges[e, 0] + u] += rig[e, u, u]
+                diag[12 * bridges[e, 1] + u] += rig[e, 9 + u, 9 + u]
+        for i in range(m):
+            top = max(top, diag[i])
+        floor = 1e-9 * max(top, 1e-300)
+        estimate = 0.0
+        for i in range(m):
+            diag[i] = max(diag[i], floor)
+            estimate += grad[i] * grad[i] / diag[i]
+        # a Jacobi estimate of what a full step could still gain: negligible → converged
+        if estimate <= 1e-2 * relative_tolerance * energy:
+            break
+        for i in range(m):
+            neg[i] = -grad[i]
+        stepped = False
+        while iterations < max_iterations:
+            iterations += 1
+            for i in range(m):
+                damp[i] = lam * diag[i]
+            if kind != COORDINATE:
+                node_factors(k_blocks, rot, rig, bridges, damp, node_fac)
+            dy, it = pcg(kind, fac, kp, ki, kx, rot, rig, bridges, damp, node_fac, neg, cg_iterations,
+                         cg_tolerance)
+            cg_total += it
+            predicted = neg @ dy  # the model's decrease, up to the damping term
+            if not predicted > 1e-3 * relative_tolerance * energy:
+                break
+            for j in range(n):
+                o = 12 * j
+                for a in range(3):
+                    for b in range(3):
+                        x_new[j, 3 * a + b] = x[j, 3 * a + b] + dy[o + 3 * b + a]
+                    x_new[j, 9 + a] = x[j, 9 + a] + dy[o + 9 + a]
+            e_new = energy_gradient(x_new, g, edges, con_nodes, con_weights, con_points, targets, active,
+                                    bridges, w_rot, w_reg, w_con, w_rig, grad, False)
+            if np.isfinite(e_new) and e_new < energy:
+                decrease = energy - e_new
+                rho = decrease / max(predicted, 1e-300)
+                lam = max(lam * max(1.0 / 3.0, 1.0 - (2.0 * rho - 1.0) ** 3), 1e-12)
+                nu = 2.0
+                x[:] = x_new
+                energy = e_new
+                energies[count] = energy
+                count += 1
+                accepted += 1
+                stepped = True
+                break
+            lam = max(lam, 1e-6) * nu
+            nu *= 2.0
+            if lam > max_damping:
+                break
+        if not stepped or decrease <= relative_tolerance * energies[count - 2]:
+            break
+    return energy, iterations, accepted, cg_total, count, lam
