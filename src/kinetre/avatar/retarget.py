@@ -30,8 +30,8 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
+from numba import njit
 
-from ..export.bvh import _min_rotations as min_rotations
 from ..skeleton.models import KINECT20
 from .bonemap import BoneMap
 from .load import Avatar
@@ -172,8 +172,7 @@ def plan_retarget(avatar: Avatar, bonemap: BoneMap) -> RetargetPlan:
         shoulders = "ShoulderLeft" in m and "ShoulderRight" in m
         twist[j] = shoulders and (kj == "Spine" or (kj == "ShoulderCenter" and _descends(parents, m["ShoulderLeft"], j)))
     sh = p[m["ShoulderRight"]] - p[m["ShoulderLeft"]]
-    frame = torso_frame(p[m["ShoulderCenter"]] - p[root],
-                        (p[m["HipRight"]] - p[m["HipLeft"]]) + sh)
+    frame = _torso(p[m["ShoulderCenter"]] - p[root], (p[m["HipRight"]] - p[m["HipLeft"]]) + sh)
     f = bonemap.facing
     yaw = np.arctan2(f[0], f[2])
     c, s = np.cos(yaw), np.sin(yaw)
@@ -192,14 +191,6 @@ def plan_retarget(avatar: Avatar, bonemap: BoneMap) -> RetargetPlan:
     return RetargetPlan(order, parents, real, fixed, int(root), aim_from, aim_to, twist, rest_aim,
                         sh / max(np.linalg.norm(sh), 1e-12), frame, bind[:, :3, :3].copy(), p.copy(), align,
                         float(np.mean(legs)))
-
-
-def torso_frame(up: np.ndarray, side: np.ndarray) -> np.ndarray:
-    """(..., 3, 3) orthonormal frames, columns (side ⟂ up, up, side × up); NaN where degenerate."""
-    y = up / np.linalg.norm(up, axis=-1, keepdims=True)
-    x = side - np.sum(side * y, axis=-1, keepdims=True) * y
-    x = x / np.linalg.norm(x, axis=-1, keepdims=True)
-    return np.stack([x, y, np.cross(x, y)], axis=-1)
 
 
 def source_leg_length(positions: np.ndarray, tracked: np.ndarray) -> float | None:
@@ -230,95 +221,190 @@ def retarget(plan: RetargetPlan, positions: np.ndarray, tracked: np.ndarray,
     Returns
     -------
     AvatarMotion
+
+    Notes
+    -----
+    One compiled pass per frame over the joints (`_frames`, numba), the same loop as the page's
+    TypeScript (web/src/avatar/retarget.ts).
     """
     state = RetargetState() if state is None else state
     pos = np.asarray(positions, dtype=np.float64)
     ok = np.asarray(tracked, dtype=bool) & np.isfinite(pos).all(axis=2)
     src = np.where(ok[..., None], pos, 0.0) @ plan.align.T         # Kinetre frame -> the avatar's facing
-    t, n = len(src), len(plan.order)
-    eye = np.broadcast_to(np.eye(3), (t, 3, 3))
+    n = len(plan.order)
     last = np.tile(np.eye(3), (n, 1, 1)) if state.relative is None else state.relative.copy()
-    rot = np.zeros((t, n, 3, 3))
-    place = np.zeros((t, n, 3))
-    shoulders = src[:, _K["ShoulderRight"]] - src[:, _K["ShoulderLeft"]]
-    shoulders_ok = ok[:, _K["ShoulderRight"]] & ok[:, _K["ShoulderLeft"]]
-    mover = plan.root
-    while plan.parents[mover] >= 0:
-        mover = plan.parents[mover]
-    for j in plan.order:
-        vp = plan.parents[j]
-        parent = eye if vp < 0 else rot[:, vp]
-        if j == plan.root:
-            world, valid = _root_rotation(plan, src, ok)
-        elif plan.aim_from[j] >= 0:
-            a, b = plan.aim_from[j], plan.aim_to[j]
-            s = src[:, b] - src[:, a]
-            valid = ok[:, a] & ok[:, b] & (np.linalg.norm(s, axis=1) > 1e-9)
-            world = min_rotations(parent @ plan.rest_aim[j], np.where(valid[:, None], s, 1.0)) @ parent
-            if plan.twist[j]:
-                world = _twist(world, plan.rest_shoulders, s, shoulders, valid & shoulders_ok)
-        else:
-            world, valid = None, None
-        if world is None:                               # an untracked role: rigid with its parent
-            relative = np.broadcast_to(last[j], (t, 3, 3))
-        else:
-            relative = _hold(np.einsum("tba,tbc->tac", parent, world), valid, last[j])
-        rot[:, j] = parent @ relative
-        last[j] = relative[-1]
-        if vp < 0:
-            place[:, j] = plan.bind_positions[j]
-            if j == mover:                  # the whole armature travels, so no bone above the hips stretches
-                place[:, j] += _root_displacement(plan, src, ok, pos, state)
-        else:
-            place[:, j] = place[:, vp] + parent @ (plan.bind_positions[j] - plan.bind_positions[vp])
+    displacement = np.ascontiguousarray(_root_displacement(plan, src, ok, pos, state))
+    rot, world, local = _frames(src, ok, displacement, last, plan.order, plan.parents, plan.root, _mover(plan),
+                                plan.aim_from, plan.aim_to, plan.twist, plan.rest_aim, plan.rest_shoulders,
+                                plan.root_frame, plan.bind_linear, plan.bind_positions, plan.real_parents,
+                                plan.fixed_parent, _K["HipCenter"], _K["ShoulderCenter"], _K["HipLeft"],
+                                _K["HipRight"], _K["ShoulderLeft"], _K["ShoulderRight"])
     state.relative = last
-
-    world = np.zeros((t, n, 4, 4))
-    world[:, :, :3, :3] = rot @ plan.bind_linear
-    world[:, :, :3, 3] = place
-    world[:, :, 3, 3] = 1.0
-    parent_world = np.broadcast_to(plan.fixed_parent, (t, n, 4, 4)).copy()
-    has = plan.real_parents >= 0
-    parent_world[:, has] = world[:, plan.real_parents[has]] @ plan.fixed_parent[has]
-    local = np.linalg.solve(parent_world, world)
     return AvatarMotion(world, local, rot)
 
 
-def _root_rotation(plan, src, ok):
-    hc, sc = _K["HipCenter"], _K["ShoulderCenter"]
-    side = np.zeros_like(src[:, 0])
-    pairs = 0
-    for a, b in (("HipLeft", "HipRight"), ("ShoulderLeft", "ShoulderRight")):
-        both = ok[:, _K[a]] & ok[:, _K[b]]
-        side += np.where(both[:, None], src[:, _K[b]] - src[:, _K[a]], 0.0)
-        pairs = pairs + both
-    up = src[:, sc] - src[:, hc]
-    with np.errstate(invalid="ignore", divide="ignore"):
-        frame = torso_frame(up, side)
-    valid = ok[:, hc] & ok[:, sc] & (pairs > 0) & np.isfinite(frame).all(axis=(1, 2))
-    frame = np.where(valid[:, None, None], frame, np.eye(3))
-    return frame @ plan.root_frame.T, valid
+def _mover(plan) -> int:
+    j = plan.root
+    while plan.parents[j] >= 0:
+        j = plan.parents[j]
+    return int(j)
 
 
-def _twist(world, rest_side, bone, side, valid):
-    """Turn `world` about the bone (T, 3) so the carried rest shoulder line best meets the tracked one."""
-    axis = bone / np.maximum(np.linalg.norm(bone, axis=1, keepdims=True), 1e-12)
-    a = world @ rest_side
-    a = a - np.sum(a * axis, axis=1, keepdims=True) * axis
-    b = side - np.sum(side * axis, axis=1, keepdims=True) * axis
-    angle = np.arctan2(np.sum(np.cross(a, b) * axis, axis=1), np.sum(a * b, axis=1))
-    good = valid & (np.linalg.norm(a, axis=1) > 1e-9) & (np.linalg.norm(b, axis=1) > 1e-9)
-    angle = np.where(good, angle, 0.0)
-    return _axis_angle(axis, angle) @ world
+@njit(cache=True)
+def _min_rotation(u, v):
+    """Smallest rotation turning direction u onto v (Rodrigues); half a turn about a perpendicular axis
+    when they are opposite."""
+    u = u / max(np.sqrt(u @ u), 1e-12)
+    v = v / max(np.sqrt(v @ v), 1e-12)
+    axis = np.cross(u, v)
+    s2 = axis @ axis
+    c = u @ v
+    if s2 <= 1e-24:
+        if c > 0:
+            return np.eye(3)
+        perp = np.cross(u, np.array([1.0, 0.0, 0.0]))
+        if np.sqrt(perp @ perp) < 1e-6:
+            perp = np.cross(u, np.array([0.0, 1.0, 0.0]))
+        perp /= np.sqrt(perp @ perp)
+        return 2.0 * np.outer(perp, perp) - np.eye(3)
+    k = _skew(axis)
+    return np.eye(3) + k + ((1.0 - c) / s2) * _mm(k, k)
 
 
-def _axis_angle(axis, angle):
-    """(T, 3, 3) rotations by `angle` (T,) about unit `axis` (T, 3) (Rodrigues)."""
-    k = np.zeros((len(axis), 3, 3))
-    k[:, 0, 1], k[:, 0, 2], k[:, 1, 2] = -axis[:, 2], axis[:, 1], -axis[:, 0]
-    k[:, 1, 0], k[:, 2, 0], k[:, 2, 1] = axis[:, 2], -axis[:, 1], axis[:, 0]
-    s, c = np.sin(angle)[:, None, None], np.cos(angle)[:, None, None]
-    return np.eye(3) + s * k + (1 - c) * (k @ k)
+@njit(cache=True)
+def _mm(a, b):
+    """Small dense product a @ b by loops (BLAS calls cost more than the work at 3x3 and 4x4)."""
+    out = np.zeros((a.shape[0], b.shape[1]))
+    for i in range(a.shape[0]):
+        for k in range(a.shape[1]):
+            aik = a[i, k]
+            for j in range(b.shape[1]):
+                out[i, j] += aik * b[k, j]
+    return out
+
+
+@njit(cache=True)
+def _mv(a, v):
+    out = np.zeros(a.shape[0])
+    for i in range(a.shape[0]):
+        for k in range(a.shape[1]):
+            out[i] += a[i, k] * v[k]
+    return out
+
+
+@njit(cache=True)
+def _affine_inverse(m):
+    """Inverse of a 4x4 affine matrix [A | t; 0 1] = [A⁻¹ | −A⁻¹ t; 0 1] (A⁻¹ by the adjugate)."""
+    a = m[:3, :3]
+    inv = np.zeros((3, 3))
+    inv[0, 0] = a[1, 1] * a[2, 2] - a[1, 2] * a[2, 1]
+    inv[0, 1] = a[0, 2] * a[2, 1] - a[0, 1] * a[2, 2]
+    inv[0, 2] = a[0, 1] * a[1, 2] - a[0, 2] * a[1, 1]
+    inv[1, 0] = a[1, 2] * a[2, 0] - a[1, 0] * a[2, 2]
+    inv[1, 1] = a[0, 0] * a[2, 2] - a[0, 2] * a[2, 0]
+    inv[1, 2] = a[0, 2] * a[1, 0] - a[0, 0] * a[1, 2]
+    inv[2, 0] = a[1, 0] * a[2, 1] - a[1, 1] * a[2, 0]
+    inv[2, 1] = a[0, 1] * a[2, 0] - a[0, 0] * a[2, 1]
+    inv[2, 2] = a[0, 0] * a[1, 1] - a[0, 1] * a[1, 0]
+    inv /= a[0, 0] * inv[0, 0] + a[0, 1] * inv[1, 0] + a[0, 2] * inv[2, 0]
+    out = np.eye(4)
+    out[:3, :3] = inv
+    out[:3, 3] = -_mv(inv, m[:3, 3])
+    return out
+
+
+@njit(cache=True)
+def _skew(a):
+    k = np.zeros((3, 3))
+    k[0, 1], k[0, 2], k[1, 2] = -a[2], a[1], -a[0]
+    k[1, 0], k[2, 0], k[2, 1] = a[2], -a[1], a[0]
+    return k
+
+
+@njit(cache=True)
+def _torso(up, side):
+    """Columns (side ⟂ up, up, side × up); all zeros when degenerate."""
+    out = np.zeros((3, 3))
+    nu = np.sqrt(up @ up)
+    if nu < 1e-12:
+        return out
+    y = up / nu
+    x = side - (side @ y) * y
+    nx = np.sqrt(x @ x)
+    if nx < 1e-12:
+        return out
+    x = x / nx
+    out[:, 0], out[:, 1], out[:, 2] = x, y, np.cross(x, y)
+    return out
+
+
+@njit(cache=True)
+def _frames(src, ok, displacement, last, order, parents, root, mover, aim_from, aim_to, twist, rest_aim,
+            rest_shoulders, root_frame, bind_linear, bind_positions, real_parents, fixed_parent,
+            hc, sc, hl, hr, sl, sr):
+    t_count, n = src.shape[0], len(order)
+    rot = np.zeros((t_count, n, 3, 3))
+    world = np.zeros((t_count, n, 4, 4))
+    local = np.zeros((t_count, n, 4, 4))
+    eye = np.eye(3)
+    for t in range(t_count):
+        sh_ok = ok[t, sl] and ok[t, sr]
+        shoulders = src[t, sr] - src[t, sl]
+        for j in order:
+            vp = parents[j]
+            parent = eye if vp < 0 else rot[t, vp].copy()
+            valid = False
+            w = eye
+            if j == root:
+                side = np.zeros(3)
+                pairs = 0
+                if ok[t, hl] and ok[t, hr]:
+                    side += src[t, hr] - src[t, hl]
+                    pairs += 1
+                if sh_ok:
+                    side += shoulders
+                    pairs += 1
+                if ok[t, hc] and ok[t, sc] and pairs > 0:
+                    frame = _torso(src[t, sc] - src[t, hc], side)
+                    if frame[0, 1] != 0.0 or frame[1, 1] != 0.0 or frame[2, 1] != 0.0:
+                        w = _mm(frame, root_frame.T)
+                        valid = True
+            elif aim_from[j] >= 0:
+                s = src[t, aim_to[j]] - src[t, aim_from[j]]
+                if ok[t, aim_from[j]] and ok[t, aim_to[j]] and np.sqrt(s @ s) > 1e-9:
+                    w = _mm(_min_rotation(_mv(parent, rest_aim[j]), s), parent)
+                    valid = True
+                    if twist[j] and sh_ok:
+                        w = _twisted(w, rest_shoulders, s, shoulders)
+            if valid:
+                last[j] = _mm(parent.T, w)
+            rot[t, j] = _mm(parent, last[j])
+            world[t, j, :3, :3] = _mm(rot[t, j], bind_linear[j])
+            if vp < 0:
+                world[t, j, :3, 3] = bind_positions[j]
+                if j == mover:              # the whole armature travels, so no bone above the hips stretches
+                    world[t, j, :3, 3] += displacement[t]
+            else:
+                world[t, j, :3, 3] = world[t, vp, :3, 3] + _mv(parent, bind_positions[j] - bind_positions[vp])
+            world[t, j, 3, 3] = 1.0
+        for j in range(n):
+            above = fixed_parent[j] if real_parents[j] < 0 else _mm(world[t, real_parents[j]], fixed_parent[j])
+            local[t, j] = _mm(_affine_inverse(above), world[t, j])
+    return rot, world, local
+
+
+@njit(cache=True)
+def _twisted(w, rest_side, bone, side):
+    """Turn `w` about the bone so the carried rest shoulder line best meets the tracked one."""
+    axis = bone / max(np.sqrt(bone @ bone), 1e-12)
+    a = _mv(w, rest_side)
+    a = a - (a @ axis) * axis
+    b = side - (side @ axis) * axis
+    if np.sqrt(a @ a) <= 1e-9 or np.sqrt(b @ b) <= 1e-9:
+        return w
+    angle = np.arctan2(np.cross(a, b) @ axis, a @ b)
+    k = _skew(axis)
+    return _mm(np.eye(3) + np.sin(angle) * k + (1.0 - np.cos(angle)) * _mm(k, k), w)
 
 
 def _hold(relative, valid, start):
