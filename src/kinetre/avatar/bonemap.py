@@ -93,6 +93,20 @@ def map_bones(avatar: Avatar, saved: str | None = None) -> BoneMap:
         The map cannot be completed (the message lists the missing Kinect joints and how to fix them) or
         the skeleton is not an upright biped (e.g. a quadruped: the message points to possession).
     """
+    bonemap = auto_map(avatar, saved)
+    name = os.path.basename(avatar.source)
+    if bonemap.missing:
+        raise BadAvatarError(
+            f"{avatar.source}: cannot map the skeleton to a body: no joint found for "
+            f"{', '.join(bonemap.missing)} (mapped: {_describe(avatar, bonemap)}); if it is a humanoid, name the "
+            f"joints in {os.path.basename(map_path(name))} next to it (the studio's avatar map editor writes "
+            f"it); a non-humanoid is brought to life by possession: kinetre animate {name} --motion ...")
+    check_humanoid(avatar, bonemap)
+    return bonemap
+
+
+def auto_map(avatar: Avatar, saved: str | None = None) -> BoneMap:
+    """The map as found (saved file, VRM, names, geometry), possibly incomplete (`BoneMap.missing`)."""
     p = avatar.bind_positions
     found: dict[str, int] = {}
     how: dict[str, str] = {}
@@ -117,17 +131,7 @@ def map_bones(avatar: Avatar, saved: str | None = None) -> BoneMap:
         for kj, j in _by_geometry(avatar).items():
             if kj not in found and j not in found.values():
                 found[kj], how[kj] = j, "geometry"
-    facing = _facing(p, found)
-    bonemap = BoneMap(found, how, facing)
-    name = os.path.basename(avatar.source)
-    if bonemap.missing:
-        raise BadAvatarError(
-            f"{avatar.source}: cannot map the skeleton to a body: no joint found for "
-            f"{', '.join(bonemap.missing)} (mapped: {_describe(avatar, bonemap)}); if it is a humanoid, name the "
-            f"joints in {os.path.basename(map_path(name))} next to it (the studio's avatar map editor writes "
-            f"it); a non-humanoid is brought to life by possession: kinetre animate {name} --motion ...")
-    check_humanoid(avatar, bonemap)
-    return bonemap
+    return BoneMap(found, how, _facing(p, found))
 
 
 def check_humanoid(avatar: Avatar, bonemap: BoneMap) -> None:

@@ -13,6 +13,7 @@
     GET  /api/takes/{id}/{f}   a file of a recorded take
     POST /api/jointmap?name=F  a joint map (JSON, docs/joint-maps.md): the n-th user to possess drives with the
                                joints its n-th source keeps; DELETE /api/jointmap clears it
+    /api/avatar, /api/avatars/…  rigged humanoid avatars beside the possessed mesh (avatars.py)
 """
 from __future__ import annotations
 
@@ -45,6 +46,7 @@ from ..graph.build import build_graph
 from ..mesh.load import load_mesh
 from ..mesh.mesh import Mesh
 from .access import TokenGate, check_bind
+from .avatars import Shelf, avatar_routes
 from .channels import Frame, Hub
 from .natsbus import NatsChannels
 from .placement import standing_mesh
@@ -316,6 +318,7 @@ def create_app(mesh_path: str | None = None, nodes: int = NODES, sample_motion: 
         studio = Studio(hub, Scene(hub, mesh, graph, Path(path).name, solver=solver), nodes=nodes)
         if sample_motion and mesh_path is None:
             studio.player = sample_player(hub)
+    shelf = Shelf()
     clients = itertools.count(1)
     prefix = f"{secrets.token_hex(2)}-" if nats else ""  # client names unique across studios of a room
     tasks: list[asyncio.Task] = []
@@ -339,6 +342,7 @@ def create_app(mesh_path: str | None = None, nodes: int = NODES, sample_motion: 
         if nats:
             await hub.close()
         shutil.rmtree(studio.takes_dir, ignore_errors=True)
+        shelf.close()
 
     async def ws_endpoint(ws: WebSocket) -> None:
         await ws.accept()
@@ -507,6 +511,7 @@ def create_app(mesh_path: str | None = None, nodes: int = NODES, sample_motion: 
         Route("/api/record/start", record_start, methods=["POST"]),
         Route("/api/record/stop", record_stop, methods=["POST"]),
         Route("/api/takes/{take_id:int}/{name}", take_get),
+        *avatar_routes(shelf),
     ]
     static = static_dir()
     if (static / "index.html").is_file():

@@ -7,6 +7,7 @@ import { PoseTracker } from '../capture/PoseTracker';
 import { JOINT_COUNT } from '../capture/kinect20';
 import type { SceneState, ServerMessage, SkeletonMessage, TransformBlock, Vec3 } from '../net/protocol';
 import { StudioSocket } from '../net/StudioSocket';
+import { AvatarStage } from '../avatar/AvatarStage';
 import { CanvasRecorder } from '../record/CanvasRecorder';
 import { TakeRecorder } from '../record/TakeRecorder';
 import { AttachPreview } from '../rigging/AttachPreview';
@@ -37,6 +38,7 @@ export class Studio {
   readonly video: CanvasRecorder;
   readonly uploader: MeshUploader;
   readonly jointMap: JointMapControl;
+  readonly avatars: AvatarStage;
   graphMesh: SkinnedGraphMesh | null = null;
   preview: AttachPreview | null = null;
   state: SceneState | null = null;
@@ -70,6 +72,7 @@ export class Studio {
       record: () => void this.toggleRecord(),
     });
     this.camera = new Camera(root);
+    this.avatars = new AvatarStage(this.viewport.scene, this.panel.root, (t, e) => this.panel.setMessage(t, e));
     this.placement = new PlacementControls(this.viewport.camera, this.viewport.renderer.domElement,
       this.viewport.controls, this.viewport.scene, (m) => this.socket.send(m));
     this.voice = new VoiceListener(() => this.socket.client, (r) => this.onVoice(r));
@@ -78,7 +81,7 @@ export class Studio {
       onProgress: (label, f) => this.panel.setProgress(label, f),
       onDone: () => { this.panel.setProgress(null); this.panel.setMessage('mesh ready: fit it to you and possess it'); },
       onError: (m) => { this.panel.setProgress(null); this.panel.setMessage(m, true); },
-    });
+    }, (file) => this.avatars.tryUpload(file));
     this.uploader.bind(root, this.panel.fileInput);
     this.jointMap = new JointMapControl(this.panel.root, (text, error) => this.panel.setMessage(text, error));
 
@@ -168,6 +171,7 @@ export class Studio {
       this.viewport.scene.add(figure.group);
     }
     figure.update(m.positions.map((p, j) => (m.tracked[j] ? p : null)));
+    this.avatars.drive(m.positions, m.tracked, m.client);
   }
 
   // --- capture ------------------------------------------------------------------------------------
@@ -201,6 +205,7 @@ export class Studio {
         this.me.group.visible = true;
         this.me.update(frame.positions, this.preview?.attachableJoints ?? []);
         this.sendFrame(frame.positions, frame.tracked);
+        this.avatars.drive(frame.positions, frame.tracked, 'me');
       } else {
         // nobody in view: an all-untracked frame makes the server hold the last pose
         this.trackingLost = true;
@@ -244,16 +249,18 @@ export class Studio {
     try {
       if (!this.takes.recording) {
         await this.takes.start();
+        this.avatars.startRecording();
         this.video.start();
         this.panel.setDownloads([]);
         this.panel.setMessage('recording… press Space or Record again to stop');
         return;
       }
-      const [take, webm] = await Promise.all([this.takes.stop(), this.video.stop()]);
+      const [take, webm, avatar] = await Promise.all([this.takes.stop(), this.video.stop(), this.avatars.stopRecording()]);
       const links = Object.entries(take.files).map(([kind, href]) => ({
         label: kind === 'stream' ? 'skeleton stream' : kind.toUpperCase(), href,
         file: href.split('/').pop() as string,
       }));
+      links.push(...avatar);
       if (webm) links.push({ label: 'WebM', href: URL.createObjectURL(webm), file: `kinetre-${take.take}.webm` });
       this.panel.setDownloads(links);
       this.panel.setMessage(`take ${take.take}: ${take.frames} frames at ${take.fps} fps`);

@@ -2,6 +2,8 @@
 // server's preprocessing job (progress from the server) until the new mesh is ready or fails readably.
 
 export const MESH_EXTENSIONS = ['.obj', '.ply', '.stl', '.glb', '.gltf', '.off'];
+// Rigged avatars (also offered to `intercept` first, which may take any skinned glTF).
+export const AVATAR_ONLY_EXTENSIONS = ['.vrm'];
 // A zip of RGB-D frames (TUM or Redwood layout) is the "Scan" entry: the server fuses it into a mesh first.
 export const SCAN_EXTENSIONS = ['.zip'];
 
@@ -14,7 +16,9 @@ export interface UploadEvents {
 export class MeshUploader {
   busy = false;
 
-  constructor(private readonly events: UploadEvents) {}
+  /** `intercept` sees each file first and returns true when it took it (a skinned humanoid avatar). */
+  constructor(private readonly events: UploadEvents,
+    private readonly intercept?: (file: File) => Promise<boolean>) {}
 
   /** Make `target` accept dropped files and `input` pick them. */
   bind(target: HTMLElement, input: HTMLInputElement): void {
@@ -26,7 +30,7 @@ export class MeshUploader {
       const file = e.dataTransfer?.files[0];
       if (file) void this.upload(file);
     });
-    input.accept = [...MESH_EXTENSIONS, ...SCAN_EXTENSIONS].join(',');
+    input.accept = [...MESH_EXTENSIONS, ...AVATAR_ONLY_EXTENSIONS, ...SCAN_EXTENSIONS].join(',');
     input.addEventListener('change', () => {
       const file = input.files?.[0];
       if (file) void this.upload(file);
@@ -37,12 +41,14 @@ export class MeshUploader {
   async upload(file: File): Promise<void> {
     if (this.busy) return this.events.onError('a mesh is already being prepared');
     const ext = file.name.slice(file.name.lastIndexOf('.')).toLowerCase();
-    if (!MESH_EXTENSIONS.includes(ext) && !SCAN_EXTENSIONS.includes(ext) && !file.name.toLowerCase().endsWith('.gz')) {
+    if (!MESH_EXTENSIONS.includes(ext) && !SCAN_EXTENSIONS.includes(ext) && !AVATAR_ONLY_EXTENSIONS.includes(ext)
+      && !file.name.toLowerCase().endsWith('.gz')) {
       return this.events.onError(
         `${file.name}: not a mesh file (expected ${MESH_EXTENSIONS.join(', ')}, or a .zip of RGB-D frames to scan)`);
     }
     this.busy = true;
     try {
+      if (this.intercept && (await this.intercept(file))) return;
       const job = await this.send(file);
       await this.follow(job);
     } catch (err) {

@@ -38,6 +38,7 @@ export function installTestHook(studio: Studio): void {
         voice: studio.lastVoice,
         voiceUtterances: studio.voice.utterances,
         take: studio.takes.last,
+        avatar: studio.avatars.state(),
       };
     },
   };

@@ -1,0 +1,80 @@
+// The avatar in the studio page, in Debian's Chromium (playwright-core): upload a rigged humanoid, watch the
+// sample motion drive it, skin one given frame (for a comparison with Python), record a take, edit the
+// bone map, and drop a fox (refused as an avatar, loaded for possession). Prints one JSON object.
+//   node driver_avatar.mjs '{"url": "...", "avatar": "...", "fox": "...", "frame": {...}, "artifacts": "..."}'
+import { createRequire } from 'node:module';
+import { mkdirSync } from 'node:fs';
+import { join } from 'node:path';
+
+const require = createRequire(new URL('../../web/package.json', import.meta.url));
+const { chromium } = require('playwright-core');
+
+const config = JSON.parse(process.argv[2]);
+const result = { steps: [] };
+const t0 = Date.now();
+const log = (step, extra = {}) => result.steps.push({ step, s: (Date.now() - t0) / 1000, ...extra });
+const avatar = (page) => page.evaluate(() => window.kinetre.state().avatar);
+const waitFor = (page, fn, arg, timeout = 60000) => page.waitForFunction(fn, arg, { timeout, polling: 250 });
+
+function spread(samples) {
+  let best = 0;
+  for (const a of samples) for (const b of samples) a.forEach((p, v) => { best = Math.max(best, Math.hypot(...p.map((x, k) => x - b[v][k]))); });
+  return best;
+}
+
+const browser = await chromium.launch({ executablePath: '/usr/bin/chromium', headless: true,
+  args: ['--headless', '--no-sandbox', '--disable-gpu', '--disable-background-timer-throttling',
+    '--disable-renderer-backgrounding', '--disable-backgrounding-occluded-windows'] });
+try {
+  const page = await browser.newPage({ viewport: { width: 720, height: 540 } });
+  page.on('pageerror', (e) => log('page error', { message: String(e) }));
+  await page.goto(config.url + '?noshadows');
+  await waitFor(page, () => window.kinetre && window.kinetre.state().meshId !== null);
+
+  await page.setInputFiles('#file', config.avatar);
+  await waitFor(page, () => window.kinetre.state().avatar.ready);
+  await waitFor(page, () => window.kinetre.state().avatar.driven > 10);
+  log('avatar driven', { source: (await avatar(page)).source });
+  const samples = [];
+  for (let i = 0; i < 8; i++) { samples.push((await avatar(page)).vertices); await page.waitForTimeout(400); }
+  result.spread = spread(samples);
+  mkdirSync(config.artifacts, { recursive: true });
+  await page.screenshot({ path: join(config.artifacts, 'studio-avatar.png') });
+
+  // one given frame, as this page's camera would deliver it: the page's skinned vertices and placement
+  result.skinned = await page.evaluate(({ positions, tracked }) => {
+    const studio = window.kinetre.studio;
+    studio.avatars.drive(positions, tracked, 'me');
+    const s = studio.avatars.state();
+    return { vertices: s.vertices, model: studio.avatars.holder.children[0].matrixWorld.elements };
+  }, config.frame);
+
+  await page.keyboard.press(' ');
+  await waitFor(page, () => window.kinetre.state().avatar.recording, null, 10000);
+  await page.waitForTimeout(2500);
+  await page.keyboard.press(' ');
+  await page.waitForSelector('#downloads a:has-text("avatar GLB")', { timeout: 60000 });
+  result.downloads = await page.$$eval('#downloads a', (links) => links.map((a) => [a.textContent, a.getAttribute('href')]));
+  log('avatar take recorded');
+
+  await page.click('#avatar-edit-map');
+  await page.waitForSelector('#avatar-map select[name="ShoulderCenter"]');
+  await page.selectOption('#avatar-map select[name="ShoulderCenter"]', config.shoulderCenter);
+  await page.click('#avatar-map-save');
+  await waitFor(page, () => /avatar map saved/.test(document.querySelector('#message').textContent));
+  result.mapped = await page.evaluate(() => window.kinetre.studio.avatars.payload.how);
+  log('map saved');
+
+  await page.setInputFiles('#file', config.fox);
+  await waitFor(page, () => /not an upright humanoid/.test(document.querySelector('#message').textContent));
+  result.foxMessage = await page.textContent('#message');
+  await waitFor(page, () => window.kinetre.state().meshName === 'Fox.glb', null, 120000);
+  result.meshAfterFox = await page.evaluate(() => window.kinetre.state().meshName);
+  result.ok = true;
+} catch (err) {
+  result.ok = false;
+  result.error = String(err && err.stack ? err.stack : err);
+} finally {
+  await browser.close();
+}
+process.stdout.write(JSON.stringify(result) + '\n');

@@ -1,0 +1,71 @@
+"""An avatar in the studio page (real Chromium, tests/e2e/driver_avatar.mjs): uploaded like a mesh, driven by
+the sample motion, skinned by three.js exactly like our numpy LBS, recorded to a validator-clean GLB, its
+bone map edited and saved next to it; a fox is refused as an avatar and loaded for possession instead."""
+from __future__ import annotations
+
+import json
+import subprocess
+from pathlib import Path
+
+import httpx
+import numpy as np
+from studio.conftest import start_server
+
+from export.takes import validate_gltf
+from kinetre.avatar.bonemap import map_bones
+from kinetre.avatar.load import load_avatar
+from kinetre.avatar.retarget import plan_retarget, retarget
+from kinetre.avatar.skin import skin_avatar
+from kinetre.motion.bvh import load_bvh
+
+HERE = Path(__file__).resolve().parent
+ROOT = HERE.parents[1]
+
+
+def test_an_avatar_in_the_studio_page(data_dir, tmp_path):
+    assert (ROOT / "src" / "kinetre" / "studio" / "static" / "index.html").is_file(), "run `make web` first"
+    take = load_bvh(data_dir / "bvh" / "cmu_12_01_walk.bvh")
+    frame = take.frame(200)
+    cesium = data_dir / "avatars" / "CesiumMan.glb"
+    config = {"avatar": str(cesium), "fox": str(data_dir / "avatars" / "Fox.glb"),
+              "frame": {"positions": frame.positions.tolist(), "tracked": frame.tracked.tolist()},
+              "shoulderCenter": "joint2", "artifacts": str(HERE / "artifacts")}
+    proc, url = start_server(sample_motion=True)
+    try:
+        out = subprocess.run(["node", str(HERE / "driver_avatar.mjs"), json.dumps({**config, "url": url + "/"})],
+                             capture_output=True, text=True, timeout=600, cwd=ROOT)
+        result = json.loads(out.stdout.strip().splitlines()[-1])
+        assert result["ok"], result.get("error", "") + json.dumps(result["steps"])
+        downloads = dict(result["downloads"])
+        files = {k: httpx.get(url + downloads[k], timeout=30).content for k in ("avatar GLB", "avatar BVH")}
+    finally:
+        proc.terminate()
+        proc.wait(10)
+
+    steps = {s["step"]: s for s in result["steps"]}
+    assert steps["avatar driven"]["source"] == "sample"
+    assert result["spread"] > 0.05                     # the walk moves the avatar's vertices (metres)
+
+    # the page's three.js skinning of the given frame = our retarget + numpy LBS, placed like the page
+    avatar = load_avatar(cesium)
+    plan = plan_retarget(avatar, map_bones(avatar))
+    motion = retarget(plan, frame.positions[None], frame.tracked[None])
+    ours = skin_avatar(avatar, motion.world)[0][0]
+    model = np.array(result["skinned"]["model"]).reshape(4, 4).T      # three.js elements are column-major
+    n = len(ours)
+    index = [int(i * n / 48) for i in range(48)]
+    expected = ours[index] @ model[:3, :3].T + model[:3, 3]
+    lo, hi = avatar.bounds()
+    diagonal = np.linalg.norm(hi - lo) * np.cbrt(abs(np.linalg.det(model[:3, :3])))
+    err = np.linalg.norm(np.array(result["skinned"]["vertices"]) - expected, axis=1).max()
+    assert err <= 1e-3 * diagonal, (err, diagonal)
+
+    glb = tmp_path / "take.glb"
+    glb.write_bytes(files["avatar GLB"])
+    report = validate_gltf(glb)
+    assert report["issues"]["numErrors"] == 0 and report["issues"]["numWarnings"] == 0
+    assert report["info"]["animationCount"] == 1
+    assert files["avatar BVH"].startswith(b"HIERARCHY")
+    assert result["mapped"]["ShoulderCenter"] == "file"
+    assert "not an upright humanoid" in result["foxMessage"] and "possess" in result["foxMessage"]
+    assert result["meshAfterFox"] == "Fox.glb"
