@@ -149,7 +149,8 @@ def cmd_animate(args, stats: dict | None = None) -> int:
     else:  # any other skeleton: from the two shapes
         from .motion.align import fit_shapes
         shape = fit_shapes(take, mesh, args.bind_frame, fit=args.fit if args.fit in ("height", "length")
-                           else "auto", yaw=args.yaw or 0.0, flip=args.flip, fit_mesh=fit_mesh)
+                           else "auto", yaw=args.yaw or 0.0, flip=args.flip, fit_mesh=fit_mesh,
+                           nodes=graph.nodes)
         placement, notes = shape.placement, shape.notes
         say(f"fitted from the shapes: front by {shape.front}, turned {shape.turn:.0f} deg, size ratios "
             f"height {shape.ratios[0]:.3g} length {shape.ratios[1]:.3g}, {100 * shape.inside:.0f} % of the "
@@ -305,6 +306,7 @@ def cmd_record(args) -> int:
 # ---- info / graph ----------------------------------------------------------------------------------
 
 def cmd_info(args) -> int:
+    from .motion.gltf import split_animation
     path = args.path
     low = path.lower()
     if low.endswith(".bvh"):
@@ -314,8 +316,8 @@ def cmd_info(args) -> int:
         _info_take(read_stream(path), "recorded take")
     elif low.endswith(VIDEO_EXTS):
         _info_video(path)
-    elif low.endswith((".glb", ".gltf")):
-        _info_gltf(path)
+    elif split_animation(path)[0].lower().endswith((".glb", ".gltf")):
+        _info_gltf(split_animation(path)[0])
     else:
         _info_mesh(path)
     return 0

@@ -35,6 +35,7 @@ from .fit import Placement, yaw_rotation
 from .take import Take
 
 NOMINAL = 1.7  # metres: the longest side of the mesh in the solve frame (a person's height)
+JOINT_REACH = 0.07  # metres in the solve frame: the median joint this near a graph node (attachment reach 0.1)
 COVER = 0.2  # metres in the solve frame: a mesh vertex this near a bone point counts as covered
 FITS = ("auto", "height", "length")
 
@@ -125,7 +126,7 @@ def _inside(points: np.ndarray, tree: cKDTree, vertices: np.ndarray, normals: np
 
 
 def fit_shapes(take: Take, mesh: Mesh, bind_frame: int = 0, fit: str = "auto", yaw: float = 0.0,
-               flip: bool = False, fit_mesh: bool = False) -> ShapeFit:
+               flip: bool = False, fit_mesh: bool = False, nodes: np.ndarray | None = None) -> ShapeFit:
     """Place a non-human take in a mesh from the two shapes (module docstring).
 
     Parameters
@@ -136,6 +137,9 @@ def fit_shapes(take: Take, mesh: Mesh, bind_frame: int = 0, fit: str = "auto", y
     fit : "auto" (geometric mean of the height and length ratios), "height" or "length"
     yaw : degrees about +Y added to the found facing; flip : turn the found facing by 180°
     fit_mesh : resize the mesh to the solve frame in the output instead of keeping its size
+    nodes : (N, 3) the deformation graph's nodes (mesh units), if built: the solve frame is then shrunk
+        until the median joint lies within `JOINT_REACH` of a node, so a thick body (a cow round a fox's
+        skeleton) still catches the joints in its 10 cm attachment reach
 
     Raises
     ------
@@ -163,14 +167,20 @@ def fit_shapes(take: Take, mesh: Mesh, bind_frame: int = 0, fit: str = "auto", y
     mesh_axis = _axis(centroids, area + 1e-30) if area.sum() > 0 else _axis(verts)
     src_axis = _axis(src)
     front, how = source_front(take, src, src_axis)
-    tree = cKDTree(verts)
-    normals = mesh.normals
-    probe = verts[np.random.default_rng(0).permutation(len(verts))[:1000]]
+    # a few thousand vertices tell inside from outside well enough and keep the search's queries cheap
+    some = np.random.default_rng(0).permutation(len(verts))[:4000]
+    normals = mesh.normals[some]
+    tree = cKDTree(verts[some], balanced_tree=False)
+    probe = verts[some[:600]]
     # ground contact: the mesh's lowest 5 % and the source's lowest 10 % (its feet), compared in x/z
-    ground = probe[probe[:, 1] < verts[:, 1].min() + 0.05 * np.ptp(verts[:, 1])][:, [0, 2]]
-    ground = ground if len(ground) else verts[np.argsort(verts[:, 1])[:20]][:, [0, 2]]
+    ground = probe[probe[:, 1] < verts[:, 1].min() + 0.05 * np.ptp(verts[:, 1])]
+    ground = ground if len(ground) else verts[np.argsort(verts[:, 1])[:20]]
+    ground = ground * [1.0, 0.0, 1.0]
     ground_tree = cKDTree(ground)
-    low = src[:, 1] < src[:, 1].min() + 0.1 * np.ptp(src[:, 1])
+    feet = src[src[:, 1] < src[:, 1].min() + 0.1 * np.ptp(src[:, 1])] * [1.0, 0.0, 1.0]
+    # the candidates move the source (x -> s R x + t); queries about the source map the other way instead,
+    # so each tree is built once: distances there are 1/s of those in the solve frame
+    src_tree, feet_tree = cKDTree(src), cKDTree(feet)
 
     def heading(target):  # yaw (degrees) taking the source front onto `target`
         return math.degrees(math.atan2(target[0], target[2]) - math.atan2(front[0], front[2]))
@@ -196,23 +206,25 @@ def fit_shapes(take: Take, mesh: Mesh, bind_frame: int = 0, fit: str = "auto", y
         best = (-1.0, base, start(turn, base))
         length = float(np.ptp(verts @ ax))
         height = float(np.ptp(verts[:, 1]))
+        moves = np.array([(da, dy) for da in np.linspace(-0.15, 0.15, 7) for dy in np.linspace(0.0, 0.15, 4)])
         for m in (0.6, 0.7, 0.8, 0.9, 1.0, 1.1, 1.25, 1.4, 1.6) if fit == "auto" else (1.0,):
             s = base * m
-            placed = s * src @ r.T
-            t0 = start(turn, s)
-            for da in np.linspace(-0.15, 0.15, 7) * length:
-                for dy in np.linspace(0.0, 0.15, 4) * height:
-                    t = t0 + da * ax + np.array([0.0, dy, 0.0])
-                    d, _ = cKDTree(placed + t).query(probe, distance_upper_bound=COVER)
-                    feet = (placed[low] + t)[:, [0, 2]]
-                    d1, _ = cKDTree(feet).query(ground, distance_upper_bound=COVER)
-                    d2, _ = ground_tree.query(feet, distance_upper_bound=COVER)
-                    score = (float(_inside(placed + t, tree, verts, normals).mean()) + float(np.isfinite(d).mean())
-                             + 0.5 * float(np.isfinite(d1).mean() + np.isfinite(d2).mean()))
-                    # ties (and near-ties) go to the unmoved start: prefer the plain fit
-                    score -= 0.02 * (abs(m - 1.0) + abs(da) / length + dy / height)
-                    if score > best[0]:
-                        best = (score, s, t)
+            t = start(turn, s) + moves[:, :1] * length * ax + moves[:, 1:] * [0.0, height, 0.0]  # (C, 3)
+            placed = s * src @ r.T + t[:, None]                                                # (C, N, 3)
+            inside = _inside(placed.reshape(-1, 3), tree, tree.data, normals).reshape(len(t), -1).mean(axis=1)
+            back = ((probe[None] - t[:, None]) @ r) / s                     # the mesh probe in source units
+            covered = np.isfinite(src_tree.query(back.reshape(-1, 3), distance_upper_bound=COVER / s)[0])
+            ground_back = ((ground[None] - t[:, None] * [1.0, 0.0, 1.0]) @ r) / s
+            reached = np.isfinite(feet_tree.query(ground_back.reshape(-1, 3), distance_upper_bound=COVER / s)[0])
+            feet_placed = s * feet @ r.T + t[:, None] * [1.0, 0.0, 1.0]
+            landed = np.isfinite(ground_tree.query(feet_placed.reshape(-1, 3), distance_upper_bound=COVER)[0])
+            score = (inside + covered.reshape(len(t), -1).mean(axis=1)
+                     + 0.5 * (reached.reshape(len(t), -1).mean(axis=1) + landed.reshape(len(t), -1).mean(axis=1)))
+            # ties (and near-ties) go to the unmoved start: prefer the plain fit
+            score -= 0.02 * (abs(m - 1.0) + np.abs(moves[:, 0]) + moves[:, 1])
+            i = int(np.argmax(score))
+            if score[i] > best[0]:
+                best = (float(score[i]), s, t[i])
         return best, (rh, rl)
 
     candidates = []
@@ -240,7 +252,7 @@ def fit_shapes(take: Take, mesh: Mesh, bind_frame: int = 0, fit: str = "auto", y
             notes.append("the mesh's front and back look alike to the fit: if the motion runs backwards, "
                          "try --flip")
     _, turn, s, t, (rh, rl), _ = chosen
-    inside = float(_inside(s * src @ yaw_rotation(turn).T + t, tree, verts, normals).mean())
+    inside = float(_inside(s * src @ yaw_rotation(turn).T + t, tree, tree.data, normals).mean())
     if max(rh, rl) / min(rh, rl) > 1.6:
         longer = "longer" if rl < rh else "taller"
         notes.append(f"the source is {max(rh, rl) / min(rh, rl):.1f}x {longer} for its size than the mesh: "
@@ -248,5 +260,11 @@ def fit_shapes(take: Take, mesh: Mesh, bind_frame: int = 0, fit: str = "auto", y
     if inside < 0.6:
         notes.append(f"only {100 * inside:.0f} % of the source's bones lie inside the mesh after fitting: "
                      f"try --yaw 90, --flip or --fit height|length")
+    shrink = 1.0
+    if nodes is not None and len(nodes):
+        joints = s * frame.positions[frame.tracked] @ yaw_rotation(turn).T + t
+        d, _ = cKDTree(np.asarray(nodes) * k).query(joints)
+        shrink = float(np.clip(JOINT_REACH / max(float(np.median(d)), 1e-12), 0.3, 1.0))
+    k, s, t = k * shrink, s * shrink, t * shrink
     placement = Placement(k, yaw_rotation(turn), t, 1.0 if fit_mesh else 1.0 / k, skeleton_scale=s)
     return ShapeFit(placement, how, float(turn % 360.0), (rh, rl), inside, tuple(notes))
