@@ -10,6 +10,7 @@
     GET  /api/jobs/{id}        a job's stage, progress fraction and readable error
     POST /api/voice?client=C   16 kHz mono WAV: recognised offline, "possess"/"release"/subset applied for C
     POST /api/record/start     start recording a take; /api/record/stop ends it and exports GLB, BVH, stream
+                               and the node transforms the page replays the physics from
     GET  /api/takes/{id}/{f}   a file of a recorded take
     POST /api/jointmap?name=F  a joint map (JSON, docs/joint-maps.md): the n-th user to possess drives with the
                                joints its n-th source keeps; DELETE /api/jointmap clears it
@@ -45,6 +46,7 @@ from ..errors import KinetreError
 from ..graph.build import build_graph
 from ..mesh.load import load_mesh
 from ..mesh.mesh import Mesh
+from ..physics.spheres import studio_packing
 from .access import TokenGate, check_bind
 from .avatars import Shelf, avatar_routes
 from .channels import Frame, Hub
@@ -88,7 +90,8 @@ def mesh_payload(mesh: Mesh, graph, mesh_id: int, name: str) -> dict:
             "positions": b64(mesh.vertices, "<f4"), "normals": b64(mesh.normals, "<f4"),
             "faces": b64(mesh.faces, "<u4"), "skinIndex": b64(graph.vertex_nodes, "<u2"),
             "skinWeight": b64(graph.vertex_weights, "<f4"), "nodes": b64(graph.nodes, "<f4"),
-            "nodeNormals": b64(graph.normals, "<f4")}
+            "nodeNormals": b64(graph.normals, "<f4"),
+            "spheres": b64(studio_packing(mesh).centres, "<u4"), "sphereRadius": studio_packing(mesh).radius}
 
 
 @dataclass
@@ -277,11 +280,15 @@ class Studio:
 
 
 def export_take(folder: Path, mesh, graph, take, fps: float) -> dict[str, str]:
-    """Write the take as GLB (the mesh animated), BVH and the skeleton stream of its first user."""
+    """Write the take as GLB (the mesh animated), node transforms (physics replay), BVH and the skeleton
+    stream of its first user."""
     from ..export.gltf import write_gltf
     files = {}
     write_gltf(folder / "take.glb", mesh, graph, [f.pose for f in take], fps)
     files["glb"] = "take.glb"
+    from ..physics.take import write_take_transforms  # the page replays the physics from these
+    write_take_transforms(folder / "take.transforms", graph, [f.pose for f in take], fps)
+    files["transforms"] = "take.transforms"
     clients = [c for c in take[0].skeletons]
     if clients:
         frames = [f.skeletons.get(clients[0]) for f in take]

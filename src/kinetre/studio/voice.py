@@ -5,9 +5,10 @@ grammar built from the joint subset names and returns a `Command`, or None for s
 that is not a command.
 
 Grammar: a verb ("possess" | "attach" → possess, "release" | "let go" → release), then optionally
-[the] and a body part; or a bare body part. Out-of-grammar speech is rejected with a garbage model in
-the same search: a loop of phone "words" competes with the commands, so "what time is it" is absorbed
-by the loop instead of being forced onto the nearest command. Measured on festival speech
+[the] and a body part; or a bare body part; or "reset" alone (the page resets its physics scene).
+Out-of-grammar speech is rejected with a garbage model in the same search: a loop of phone "words"
+competes with the commands, so "what time is it" is absorbed by the loop instead of being forced onto
+the nearest command. Measured on festival speech
 (benchmarks/bench_voice.py): 72/72 commands, 0/20 out-of-grammar sentences accepted; without the loop
 14 of those 20 come back as commands. The price is noise robustness (white noise at 20 dB SNR: 57/64
 right, 60/64 without the loop) and ~4x the decode time (~95 ms CPU per utterance; 10-25 ms without the loop, SPEC §3.3).
@@ -41,6 +42,8 @@ MIN_LEVEL_DBFS = -50.0
 
 # Spoken verb → command verb.
 VERBS = {"possess": "possess", "attach": "possess", "release": "release", "let go": "release"}
+# Whole-scene actions, said alone (no body part): "reset" rebuilds the physics scene in the page.
+ACTIONS = {"reset": "reset"}
 
 # Garbage loop: a dozen broad-class phones (vowels front/back/central, fricative, stops, nasal, liquids)
 # cover English well enough to out-score a forced command on other speech; all 39 phones cost ~7x the
@@ -58,7 +61,7 @@ class BadAudioError(KinetreError):
 class Command:
     """A recognised voice command.
 
-    verb : "possess" | "release" | None — None for a bare body part ("left arm": change the subset).
+    verb : "possess" | "release" | "reset" | None — None for a bare body part ("left arm": change the subset).
     subset : one of kinetre.subset_names(), or None when no body part was said.
     text : the recognised words, e.g. "release the left arm".
     """
@@ -78,6 +81,8 @@ def command_sentences(subsets: tuple[str, ...]) -> dict[str, Command]:
             out[text] = Command(verb, part, text)
     for part in subsets:
         out[part] = Command(None, part, part)
+    for spoken, verb in ACTIONS.items():
+        out[spoken] = Command(verb, None, spoken)
     return out
 
 
@@ -91,8 +96,9 @@ def jsgf_grammar(subsets: tuple[str, ...], garbage_words: tuple[str, ...], garba
         "#JSGF V1.0;\n"
         "grammar kinetre;\n"
         f"public <utterance> = /{weight}/ <command> | /1/ <garbage>;\n"
-        "<command> = <verb> [[the] <part>] | <part>;\n"
+        "<command> = <verb> [[the] <part>] | <part> | <action>;\n"
         f"<verb> = {verbs};\n"
+        f"<action> = {' | '.join(ACTIONS)};\n"
         f"<part> = {parts};\n"
         f"<garbage> = ({garbage})+;\n"
     )

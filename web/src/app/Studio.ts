@@ -8,6 +8,7 @@ import { JOINT_COUNT } from '../capture/kinect20';
 import type { SceneState, ServerMessage, SkeletonMessage, TransformBlock, Vec3 } from '../net/protocol';
 import { StudioSocket } from '../net/StudioSocket';
 import { AvatarStage } from '../avatar/AvatarStage';
+import { Playground } from '../physics/Playground';
 import { CanvasRecorder } from '../record/CanvasRecorder';
 import { TakeRecorder } from '../record/TakeRecorder';
 import { AttachPreview } from '../rigging/AttachPreview';
@@ -39,6 +40,7 @@ export class Studio {
   readonly uploader: MeshUploader;
   readonly jointMap: JointMapControl;
   readonly avatars: AvatarStage;
+  readonly physics: Playground;
   graphMesh: SkinnedGraphMesh | null = null;
   preview: AttachPreview | null = null;
   state: SceneState | null = null;
@@ -97,6 +99,7 @@ export class Studio {
       },
     });
     this.viewport.onFrame(() => this.frame());
+    this.physics = new Playground(this);
   }
 
   start(): void {
@@ -142,6 +145,8 @@ export class Studio {
       this.pending = block; // the mesh is still loading: apply when it arrives
       return;
     }
+    this.physics.setTransforms(block.rows);
+    if (this.physics.replaying) return; // the replay draws the take's poses
     this.graphMesh.setNodeMatrices(block.rows, block.seq);
     if (block.tSource > 0) this.latency = [...this.latency.slice(-59), Date.now() - block.tSource];
   }
@@ -158,6 +163,8 @@ export class Studio {
     this.preview = new AttachPreview(data.nodes);
     this.placement.holder.add(this.graphMesh.mesh, this.preview.points);
     if (this.pending && this.pending.meshId === id) this.graphMesh.setNodeMatrices(this.pending.rows, this.pending.seq);
+    this.physics.setMesh(data);
+    if (this.pending && this.pending.meshId === id) this.physics.setTransforms(this.pending.rows);
     this.pending = null;
     this.updateStatus();
   }
@@ -241,6 +248,7 @@ export class Studio {
     if (r.error) this.panel.setMessage(`voice: ${r.error}`, true);
     else if (r.command) {
       if (r.command.subset) this.panel.subset = r.command.subset;
+      if (r.command.verb === 'reset') this.physics.reset();
       this.panel.setMessage(`heard “${r.command.text}”`);
     }
   }
@@ -256,7 +264,8 @@ export class Studio {
         return;
       }
       const [take, webm, avatar] = await Promise.all([this.takes.stop(), this.video.stop(), this.avatars.stopRecording()]);
-      const links = Object.entries(take.files).map(([kind, href]) => ({
+      if (take.files.transforms && this.state) this.physics.setTake(take.files.transforms, take.fps, this.state.placement.matrix);
+      const links = Object.entries(take.files).filter(([kind]) => kind !== 'transforms').map(([kind, href]) => ({
         label: kind === 'stream' ? 'skeleton stream' : kind.toUpperCase(), href,
         file: href.split('/').pop() as string,
       }));

@@ -12,6 +12,8 @@ export interface MeshPayloadJson {
   skinWeight: string;
   nodes: string;
   nodeNormals: string;
+  spheres: string;
+  sphereRadius: number;
 }
 
 export interface MeshData {
@@ -24,6 +26,8 @@ export interface MeshData {
   skinWeight: Float32Array; // V × 4, rows sum to 1
   nodes: Float32Array; // N × 3 node positions g_j
   nodeNormals: Float32Array; // N × 3
+  spheres: Uint32Array; // S: the vertex at the centre of each physics proxy sphere (SPEC §4)
+  sphereRadius: number; // their radius, mesh frame (metres before placement)
 }
 
 function bytes(b64: string): ArrayBuffer {
@@ -44,6 +48,8 @@ export function decodeMesh(json: MeshPayloadJson): MeshData {
     skinWeight: new Float32Array(bytes(json.skinWeight)),
     nodes: new Float32Array(bytes(json.nodes)),
     nodeNormals: new Float32Array(bytes(json.nodeNormals)),
+    spheres: new Uint32Array(bytes(json.spheres)),
+    sphereRadius: json.sphereRadius,
   };
 }
 

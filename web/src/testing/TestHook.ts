@@ -39,6 +39,7 @@ export function installTestHook(studio: Studio): void {
         voiceUtterances: studio.voice.utterances,
         take: studio.takes.last,
         avatar: studio.avatars.state(),
+        physics: studio.physics.state(),
       };
     },
   };

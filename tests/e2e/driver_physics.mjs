@@ -1,0 +1,133 @@
+// Physics play in a real browser (Debian's Chromium + SwiftShader, driven by playwright-core): the box tower
+// beside the sample cow at rest, the cow dragged through it (the "place" message the Move gizmo sends), boxes
+// falling, the sphere proxies shown (O), reset by key (X) and by voice ("reset" on the fake microphone),
+// dodgeball, and a recorded take replayed through the physics into a WebM. Prints one JSON object.
+//   node driver_physics.mjs '{"url": "...", "audio": "reset.wav", "artifacts": "...", "out": "video.webm"}'
+import { createRequire } from 'node:module';
+import { mkdirSync, writeFileSync } from 'node:fs';
+import { join, resolve } from 'node:path';
+
+const require = createRequire(new URL('../../web/package.json', import.meta.url));
+const { chromium } = require('playwright-core');
+
+const config = JSON.parse(process.argv[2]);
+const result = { steps: [] };
+const t0 = Date.now();
+const log = (step, extra = {}) => result.steps.push({ step, s: (Date.now() - t0) / 1000, ...extra });
+const physics = (page) => page.evaluate(() => window.kinetre.state().physics);
+const until = async (page, predicate, arg, timeout = 60000) =>
+  (await page.waitForFunction(predicate, arg, { timeout, polling: 200 })).jsonValue();
+
+async function shot(page, file) {
+  mkdirSync(config.artifacts, { recursive: true });
+  await page.screenshot({ path: join(config.artifacts, file) });
+}
+
+async function run() {
+  const browser = await chromium.launch({
+    executablePath: '/usr/bin/chromium', headless: true,
+    args: ['--headless', '--no-sandbox', '--disable-gpu', '--no-first-run', '--disable-background-timer-throttling',
+      '--disable-renderer-backgrounding', '--use-fake-ui-for-media-stream', '--use-fake-device-for-media-stream',
+      `--use-file-for-fake-audio-capture=${resolve(config.audio)}`],
+  });
+  try {
+    const page = await browser.newPage({ viewport: { width: 640, height: 480 } });
+    page.on('pageerror', (e) => log('page error', { message: String(e) }));
+    await page.goto(`${config.url}/?noshadows&physics=tower`);
+    await until(page, () => window.kinetre && window.kinetre.state().physics.boxes.length === 20);
+    // stop the sample walk: a possessed mesh follows its skeleton, wherever the placement puts it
+    await page.keyboard.press('m');
+    await until(page, () => !window.kinetre.state().users.some((u) => u.possessing));
+    await page.waitForTimeout(500);
+    await page.keyboard.press('x'); // the tower beside the cow at rest
+    await until(page, () => { const p = window.kinetre.state().physics; return p.steps > 0 && p.steps < 30; });
+    const start = await physics(page);
+    result.start = { spheres: start.spheres, radius: start.radius, boxes: start.boxes };
+    log('tower built', { spheres: start.spheres });
+    await shot(page, 'physics-tower.png');
+
+    // drag the cow 1.8 m to the right, through the tower, in 40 small moves
+    await page.evaluate(async () => {
+      const studio = window.kinetre.studio;
+      const p = studio.state.placement;
+      for (let i = 1; i <= 40; i++) {
+        studio.socket.send({ type: 'place', scale: p.scale, position: [p.position[0] + 0.045 * i, p.position[1], p.position[2]], yaw: p.yaw });
+        await new Promise((r) => setTimeout(r, 75));
+      }
+    });
+    await until(page, () => window.kinetre.state().physics.knockedDown >= 10);
+    await page.waitForTimeout(1500); // let them land
+    await page.keyboard.press('o'); // show the spheres
+    await page.waitForTimeout(300);
+    const hit = await physics(page);
+    result.hit = { knockedDown: hit.knockedDown, boxes: hit.boxes, showSpheres: hit.showSpheres, proxies: hit.proxies };
+    log('boxes knocked down', { knockedDown: hit.knockedDown });
+    await shot(page, 'physics-knocked-down.png');
+
+    await page.keyboard.press('x');
+    const reset = await until(page, () => { const p = window.kinetre.state().physics; return p.steps < 30 && p.boxes.length ? p : null; });
+    result.resetByKey = { knockedDown: reset.knockedDown, boxes: reset.boxes, steps: reset.steps };
+    log('reset by key');
+
+    // knock the rebuilt tower again (the cow goes back), then say "reset"
+    await page.evaluate(async () => {
+      const studio = window.kinetre.studio;
+      const p = studio.state.placement;
+      for (let i = 1; i <= 40; i++) {
+        studio.socket.send({ type: 'place', scale: p.scale, position: [p.position[0] + 0.045 * i, p.position[1], p.position[2]], yaw: p.yaw });
+        await new Promise((r) => setTimeout(r, 75));
+      }
+    });
+    await until(page, () => window.kinetre.state().physics.knockedDown >= 5);
+    const before = (await physics(page)).knockedDown;
+    await page.keyboard.press('v');
+    const voice = await until(page, () => {
+      const s = window.kinetre.state();
+      return s.voice && s.voice.command && s.voice.command.verb === 'reset' ? { voice: s.voice, physics: s.physics } : null;
+    }, null, 90000);
+    await page.keyboard.press('v');
+    result.resetByVoice = { heard: voice.voice.command.text, before, knockedDown: voice.physics.knockedDown, steps: voice.physics.steps };
+    log('reset by voice');
+
+    await page.selectOption('#physics-preset', 'dodgeball');
+    const balls = await until(page, () => { const p = window.kinetre.state().physics; return p.balls >= 3 ? p : null; });
+    result.dodgeball = { balls: balls.balls, boxes: balls.boxes.length };
+    await shot(page, 'physics-dodgeball.png');
+    log('dodgeball');
+
+    // a take of the sample motion, replayed through a box tower into a WebM
+    await page.selectOption('#physics-preset', 'tower');
+    await page.keyboard.press('m');
+    await until(page, () => window.kinetre.state().users.some((u) => u.possessing));
+    await page.keyboard.press(' ');
+    await page.waitForTimeout(1500);
+    await page.keyboard.press(' ');
+    await until(page, () => !document.querySelector('#physics-replay').disabled, null, 60000);
+    await page.click('#physics-replay');
+    const replay = await until(page, () => window.kinetre.state().physics.lastReplay, null, 240000);
+    result.replay = replay;
+    const video = await page.evaluate(async () => {
+      const a = document.querySelector('#physics-video');
+      const bytes = new Uint8Array(await (await fetch(a.href)).arrayBuffer());
+      let s = '';
+      for (let i = 0; i < bytes.length; i += 0x8000) s += String.fromCharCode(...bytes.subarray(i, i + 0x8000));
+      return { name: a.download, hidden: a.hidden, b64: btoa(s) };
+    });
+    writeFileSync(config.out, Buffer.from(video.b64, 'base64'));
+    result.video = { name: video.name, hidden: video.hidden, file: config.out };
+    await shot(page, 'physics-replayed.png');
+    log('replayed');
+  } finally {
+    await browser.close();
+  }
+}
+
+try {
+  await run();
+  result.ok = true;
+} catch (err) {
+  result.ok = false;
+  result.error = String(err && err.stack ? err.stack : err);
+}
+result.seconds = (Date.now() - t0) / 1000;
+process.stdout.write(JSON.stringify(result) + '\n');
