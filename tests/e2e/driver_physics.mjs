@@ -23,6 +23,18 @@ async function shot(page, file) {
   await page.screenshot({ path: join(config.artifacts, file) });
 }
 
+/** Drag the cow 1.8 m to the right (through the tower beside it) in 40 moves, as the Move gizmo would. */
+function dragRight(page) {
+  return page.evaluate(async () => {
+    const studio = window.kinetre.studio;
+    const p = studio.state.placement;
+    for (let i = 1; i <= 40; i++) {
+      studio.socket.send({ type: 'place', scale: p.scale, position: [p.position[0] + 0.045 * i, p.position[1], p.position[2]], yaw: p.yaw });
+      await new Promise((r) => setTimeout(r, 75));
+    }
+  });
+}
+
 async function run() {
   const browser = await chromium.launch({
     executablePath: '/usr/bin/chromium', headless: true,
@@ -46,15 +58,7 @@ async function run() {
     log('tower built', { spheres: start.spheres });
     await shot(page, 'physics-tower.png');
 
-    // drag the cow 1.8 m to the right, through the tower, in 40 small moves
-    await page.evaluate(async () => {
-      const studio = window.kinetre.studio;
-      const p = studio.state.placement;
-      for (let i = 1; i <= 40; i++) {
-        studio.socket.send({ type: 'place', scale: p.scale, position: [p.position[0] + 0.045 * i, p.position[1], p.position[2]], yaw: p.yaw });
-        await new Promise((r) => setTimeout(r, 75));
-      }
-    });
+    await dragRight(page);
     await until(page, () => window.kinetre.state().physics.knockedDown >= 10);
     await page.waitForTimeout(1500); // let them land
     await page.keyboard.press('o'); // show the spheres
@@ -69,15 +73,7 @@ async function run() {
     result.resetByKey = { knockedDown: reset.knockedDown, boxes: reset.boxes, steps: reset.steps };
     log('reset by key');
 
-    // knock the rebuilt tower again (the cow goes back), then say "reset"
-    await page.evaluate(async () => {
-      const studio = window.kinetre.studio;
-      const p = studio.state.placement;
-      for (let i = 1; i <= 40; i++) {
-        studio.socket.send({ type: 'place', scale: p.scale, position: [p.position[0] + 0.045 * i, p.position[1], p.position[2]], yaw: p.yaw });
-        await new Promise((r) => setTimeout(r, 75));
-      }
-    });
+    await dragRight(page); // through the rebuilt tower, then say "reset"
     await until(page, () => window.kinetre.state().physics.knockedDown >= 5);
     const before = (await physics(page)).knockedDown;
     await page.keyboard.press('v');

@@ -12,6 +12,7 @@ from pathlib import Path
 
 import pytest
 from studio.conftest import start_server
+from studio.fixtures_voice import looped_command_wav
 
 HERE = Path(__file__).resolve().parent
 ROOT = HERE.parents[1]
@@ -20,13 +21,7 @@ ROOT = HERE.parents[1]
 @pytest.fixture(scope="module")
 def reset_wav(tmp_path_factory):
     """Festival saying "reset", then silence (the fake microphone loops it)."""
-    folder = tmp_path_factory.mktemp("voice")
-    raw, wav = folder / "raw.wav", folder / "reset.wav"
-    subprocess.run(["text2wave", "-o", str(raw), "-eval", "(voice_kal_diphone)"], input=b"reset", check=True,
-                   capture_output=True)
-    subprocess.run(["sox", str(raw), "-r", "16000", "-c", "1", "-b", "16", str(wav), "pad", "0.5", "1.5"],
-                   check=True, capture_output=True)
-    return wav
+    return looped_command_wav("reset", tmp_path_factory.mktemp("voice"))
 
 
 def test_boxes_fall_reset_dodgeball_and_replay_to_video(reset_wav, tmp_path):

@@ -13,6 +13,7 @@ from pathlib import Path
 import pygltflib
 import pytest
 from studio.conftest import start_server
+from studio.fixtures_voice import looped_command_wav
 
 HERE = Path(__file__).resolve().parent
 ROOT = HERE.parents[1]
@@ -44,13 +45,7 @@ def studio_page():
 @pytest.fixture(scope="module")
 def possess_wav(tmp_path_factory):
     """Festival saying "possess", then silence (the fake microphone loops it)."""
-    folder = tmp_path_factory.mktemp("voice")
-    raw, wav = folder / "raw.wav", folder / "possess.wav"
-    subprocess.run(["text2wave", "-o", str(raw), "-eval", "(voice_kal_diphone)"], input=b"possess", check=True,
-                   capture_output=True)
-    subprocess.run(["sox", str(raw), "-r", "16000", "-c", "1", "-b", "16", str(wav), "pad", "0.5", "1.5"],
-                   check=True, capture_output=True)
-    return wav
+    return looped_command_wav("possess", tmp_path_factory.mktemp("voice"))
 
 
 def test_the_sample_motion_plays_before_any_camera(studio_page):

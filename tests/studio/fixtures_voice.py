@@ -40,3 +40,15 @@ def synthesise(texts: list[str], voice: str, directory: Path) -> list[bytes]:
     scm.write_text("\n".join(script) + "\n")
     subprocess.run(["festival", "-b", str(scm)], check=True, capture_output=True, timeout=300)
     return [p.read_bytes() for p in paths]
+
+
+def looped_command_wav(text: str, directory: Path) -> Path:
+    """Festival (kal) saying `text` as 16 kHz mono WAV with 0.5 s of silence before and 1.5 s after: what a
+    browser's fake microphone loops in the e2e tests."""
+    directory.mkdir(parents=True, exist_ok=True)
+    raw, wav = directory / "raw.wav", directory / f"{text.replace(' ', '_')}.wav"
+    subprocess.run(["text2wave", "-o", str(raw), "-eval", "(voice_kal_diphone)"], input=text.encode(), check=True,
+                   capture_output=True)
+    subprocess.run(["sox", str(raw), "-r", "16000", "-c", "1", "-b", "16", str(wav), "pad", "0.5", "1.5"],
+                   check=True, capture_output=True)
+    return wav
