@@ -111,3 +111,46 @@ def test_corrupt_and_animationless_files_are_named(tmp_path):
         load_take(bad)
     with pytest.raises(BadMotionError, match="no such file"):
         load_take(tmp_path / "missing.glb#Walk")
+
+
+def test_a_person_with_kinect_names_maps_to_kinect20(tmp_path):
+    """A glTF person (here Z-up, joints named as Kinect-20) is mapped like a BVH person: Kinect-20, +Y up."""
+    import kinetre
+    model = kinetre.KINECT20
+    # a standing T-pose in a Z-up file: height along +Z
+    rest = {"HipCenter": (0, 0, 1.0), "Spine": (0, 0, 1.2), "ShoulderCenter": (0, 0, 1.45), "Head": (0, 0, 1.65)}
+    for side, x in (("Left", 0.2), ("Right", -0.2)):
+        rest.update({f"Shoulder{side}": (x, 0, 1.45), f"Elbow{side}": (2 * x, 0, 1.45),
+                     f"Wrist{side}": (3 * x, 0, 1.45), f"Hand{side}": (3.4 * x, 0, 1.45),
+                     f"Hip{side}": (x / 2, 0, 0.95), f"Knee{side}": (x / 2, 0, 0.5),
+                     f"Ankle{side}": (x / 2, 0, 0.08), f"Foot{side}": (x / 2, 0.15, 0.0)})
+    nodes = []
+    for name, parent in zip(model.joints, model.parents):
+        offset = np.subtract(rest[name], rest[model.joints[parent]]) if parent >= 0 else np.array(rest[name])
+        nodes.append(gl.Node(name=name, translation=[float(v) for v in offset], children=[]))
+    for j, parent in enumerate(model.parents):
+        if parent >= 0:
+            nodes[parent].children.append(j)
+    times = np.array([0.0, 1.0], np.float32)
+    moves = np.array([[0, 0, 1.0], [0.5, 0, 1.0]], np.float32)  # the hips slide 0.5 along +X
+    blob = times.tobytes() + moves.tobytes()
+    doc = gl.GLTF2(scene=0, scenes=[gl.Scene(nodes=[0])], nodes=nodes,
+                   animations=[gl.Animation(name="slide", samplers=[gl.AnimationSampler(input=0, output=1)],
+                                            channels=[gl.AnimationChannel(sampler=0, target=gl.AnimationChannelTarget(
+                                                node=0, path="translation"))])],
+                   accessors=[gl.Accessor(bufferView=0, componentType=gl.FLOAT, count=2, type="SCALAR",
+                                          min=[0.0], max=[1.0]),
+                              gl.Accessor(bufferView=1, componentType=gl.FLOAT, count=2, type="VEC3")],
+                   bufferViews=[gl.BufferView(buffer=0, byteOffset=0, byteLength=8),
+                                gl.BufferView(buffer=0, byteOffset=8, byteLength=24)],
+                   buffers=[gl.Buffer(byteLength=len(blob))])
+    doc.set_binary_blob(blob)
+    doc.save_binary(str(tmp_path / "person.glb"))
+    take = load_take(tmp_path / "person.glb", fps=2.0)
+    assert take.model == kinetre.KINECT20 and len(take) == 3
+    head, hips = take.model.index("Head"), take.model.index("HipCenter")
+    np.testing.assert_allclose(take.positions[0, head] - take.positions[0, hips], [0, 0.65, 0], atol=1e-6)
+    assert abs(take.frame(0).height - 1.65) < 1e-6
+    np.testing.assert_allclose(take.positions[2, hips] - take.positions[0, hips], [0.5, 0, 0], atol=1e-6)
+    own = load_take(tmp_path / "person.glb", as_kinect=False)
+    assert own.model.name == "gltf:person" and own.model.joints == kinetre.KINECT20.joints

@@ -126,9 +126,10 @@ class _Document:
         return out
 
 
-def animations(path: str | os.PathLike) -> list[AnimationInfo]:
-    """The animations of a glTF file (empty when it has none)."""
-    d = _Document(os.fspath(path))
+def animations(path: str | os.PathLike | _Document) -> list[AnimationInfo]:
+    """The animations of a glTF file (empty when it has none); a loaded `_Document` is not parsed again
+    (pygltflib's JSON decoding is most of the cost of reading a small file)."""
+    d = path if isinstance(path, _Document) else _Document(os.fspath(path))
     out = []
     for i, anim in enumerate(d.doc.animations or []):
         times = [d.accessor(anim.samplers[c.sampler].input) for c in anim.channels]
@@ -400,7 +401,7 @@ def load_gltf(path: str | os.PathLike, animation: str | int | None = None, fps: 
     if not (isinstance(fps, (int, float)) and math.isfinite(fps) and fps > 0):
         raise BadMotionError(f"{path}: fps must be a positive number, got {fps!r}")
     d = _Document(path)
-    info = _pick(animations(path), animation, path)
+    info = _pick(animations(d), animation, path)
     count = int(math.floor(info.duration * fps + 1e-6)) + 1
     t = info.start + np.arange(count) / fps
     nodes, parents = skeleton_nodes(d, info.index)
