@@ -9,8 +9,8 @@ meshes are):
 2. the source's front along its axis: the way it travels over the clip when it travels, else the end
    nearer a joint named "head", else its higher end; the mesh's front is the end of its axis that puts the
    source's bones inside the mesh best and matches the two height profiles (max height along the axis);
-3. scale: mesh/source ratio of heights and of lengths, their geometric mean by default (`fit="height"` or
-   `"length"` takes one);
+3. scale: mesh/source ratio of heights and of lengths (the middle 90 % of each, so a fox's tail does not
+   count as body), their geometric mean by default (`fit="height"` or `"length"` takes one);
 4. a small search over both horizontal axes of the mesh, scale (0.6-1.6x), position along the axis and height maximises the share of bone
    points inside the mesh (inside: behind the nearest vertex's normal) plus the share of the mesh within
    `COVER` of a bone (so the legs reach into the legs, and a tiny skeleton deep inside does not win) plus
@@ -119,6 +119,12 @@ def source_front(take: Take, bind: np.ndarray, axis: np.ndarray) -> tuple[np.nda
     return (axis if prof[-2:].mean() >= prof[:2].mean() else -axis), "profile"
 
 
+def _extent(values: np.ndarray) -> float:
+    """Spread of the middle 90 % of the values (a thin tail or an antenna does not set a body's size)."""
+    lo, hi = np.percentile(values, [5.0, 95.0])
+    return float(hi - lo)
+
+
 def _inside(points: np.ndarray, tree: cKDTree, vertices: np.ndarray, normals: np.ndarray) -> np.ndarray:
     """(N,) bool: each point lies behind the normal of its nearest mesh vertex (inside a closed surface)."""
     _, i = tree.query(points)
@@ -189,8 +195,8 @@ def fit_shapes(take: Take, mesh: Mesh, bind_frame: int = 0, fit: str = "auto", y
         r = yaw_rotation(turn)
         placed = src @ r.T
         ax = r @ front
-        return (float(np.ptp(verts[:, 1]) / max(np.ptp(placed[:, 1]), 1e-12)),
-                float(np.ptp(verts @ ax) / max(np.ptp(placed @ ax), 1e-12)))
+        return (float(_extent(verts[:, 1]) / max(_extent(placed[:, 1]), 1e-12)),
+                float(_extent(verts @ ax) / max(_extent(placed @ ax), 1e-12)))
 
     def start(turn, scale):  # grounded and centred
         placed = scale * src @ yaw_rotation(turn).T
@@ -253,7 +259,7 @@ def fit_shapes(take: Take, mesh: Mesh, bind_frame: int = 0, fit: str = "auto", y
                          "try --flip")
     _, turn, s, t, (rh, rl), _ = chosen
     inside = float(_inside(s * src @ yaw_rotation(turn).T + t, tree, tree.data, normals).mean())
-    if max(rh, rl) / min(rh, rl) > 1.6:
+    if max(rh, rl) / min(rh, rl) > 2.0:  # proportions twice apart: a fox in a giraffe
         longer = "longer" if rl < rh else "taller"
         notes.append(f"the source is {max(rh, rl) / min(rh, rl):.1f}x {longer} for its size than the mesh: "
                      f"try --fit height or --fit length")
