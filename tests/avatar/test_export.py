@@ -124,3 +124,27 @@ def test_cli_writes_and_then_uses_a_map_next_to_the_avatar(tmp_path, capsys, dat
                           "-o", tmp_path / "walk.bvh", "--max-frames", "5")
     assert code == 0, err
     assert "ShoulderCenter<-torso_joint_3 (file)" in text
+
+
+def test_cli_drives_an_avatar_from_a_recorded_take_into_a_video(tmp_path, capsys, data_dir):
+    import cv2
+    take = tmp_path / "walk.kinetre.jsonl"
+    code, _, err = run(capsys, "record", data_dir / "bvh" / "cmu_12_01_walk.bvh", "-o", take, "--fps", "30")
+    assert code == 0, err
+    video = tmp_path / "robot.mp4"
+    code, text, err = run(capsys, "avatar", data_dir / "avatars" / "robot_quaternius.glb", "--motion", take,
+                          "-o", video, "--frames", "60:", "--max-frames", "8", "-q")
+    assert code == 0, err
+    cap = cv2.VideoCapture(str(video))
+    frames = []
+    while True:
+        ok, image = cap.read()
+        if not ok:
+            break
+        frames.append(image.astype(float))
+    cap.release()
+    assert len(frames) == 8 and frames[0].shape == (480, 640, 3)
+    # the avatar is drawn (orange robot pixels: red well above blue) and it moves between frames
+    orange = lambda f: ((f[..., 2] - f[..., 0]) > 80).mean()                       # OpenCV frames are BGR
+    assert min(orange(f) for f in frames) > 0.01
+    assert np.abs(frames[-1] - frames[0]).mean() > 0.5

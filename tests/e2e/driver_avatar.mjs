@@ -1,10 +1,11 @@
 // The avatar in the studio page, in Debian's Chromium (playwright-core): upload a rigged humanoid, watch the
 // sample motion drive it, skin one given frame (for a comparison with Python), record a take, edit the
-// bone map, and drop a fox (refused as an avatar, loaded for possession). Prints one JSON object.
-//   node driver_avatar.mjs '{"url": "...", "avatar": "...", "fox": "...", "frame": {...}, "artifacts": "..."}'
+// bone map, drive it from the (fake) webcam, and drop a fox (refused as an avatar, loaded for possession).
+// Prints one JSON object.
+//   node driver_avatar.mjs '{"url": "...", "avatar": "...", "fox": "...", "frame": {...}, "video": "...", ...}'
 import { createRequire } from 'node:module';
 import { mkdirSync } from 'node:fs';
-import { join } from 'node:path';
+import { join, resolve } from 'node:path';
 
 const require = createRequire(new URL('../../web/package.json', import.meta.url));
 const { chromium } = require('playwright-core');
@@ -24,7 +25,9 @@ function spread(samples) {
 
 const browser = await chromium.launch({ executablePath: '/usr/bin/chromium', headless: true,
   args: ['--headless', '--no-sandbox', '--disable-gpu', '--disable-background-timer-throttling',
-    '--disable-renderer-backgrounding', '--disable-backgrounding-occluded-windows'] });
+    '--disable-renderer-backgrounding', '--disable-backgrounding-occluded-windows',
+    '--use-fake-ui-for-media-stream', '--use-fake-device-for-media-stream',
+    `--use-file-for-fake-video-capture=${resolve(config.video)}`] });
 try {
   const page = await browser.newPage({ viewport: { width: 720, height: 540 } });
   page.on('pageerror', (e) => log('page error', { message: String(e) }));
@@ -35,9 +38,12 @@ try {
   await waitFor(page, () => window.kinetre.state().avatar.ready);
   await waitFor(page, () => window.kinetre.state().avatar.driven > 10);
   log('avatar driven', { source: (await avatar(page)).source });
-  const samples = [];
-  for (let i = 0; i < 8; i++) { samples.push((await avatar(page)).vertices); await page.waitForTimeout(400); }
-  result.spread = spread(samples);
+  const watch = async () => {
+    const samples = [];
+    for (let i = 0; i < 8; i++) { samples.push((await avatar(page)).vertices); await page.waitForTimeout(400); }
+    return spread(samples);
+  };
+  result.spread = await watch();
   mkdirSync(config.artifacts, { recursive: true });
   await page.screenshot({ path: join(config.artifacts, 'studio-avatar.png') });
 
@@ -70,6 +76,13 @@ try {
   result.foxMessage = await page.textContent('#message');
   await waitFor(page, () => window.kinetre.state().meshName === 'Fox.glb', null, 120000);
   result.meshAfterFox = await page.evaluate(() => window.kinetre.state().meshName);
+
+  // the webcam's skeleton (a dancer on the fake camera) takes over from the sample motion
+  await page.keyboard.press('c');
+  await waitFor(page, () => window.kinetre.state().trackedJoints >= 12 && window.kinetre.state().avatar.source === 'me',
+    null, 180000);
+  result.cameraSpread = await watch();
+  log('camera drives the avatar', { source: (await avatar(page)).source });
   result.ok = true;
 } catch (err) {
   result.ok = false;

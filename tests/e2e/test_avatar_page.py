@@ -1,6 +1,6 @@
 """An avatar in the studio page (real Chromium, tests/e2e/driver_avatar.mjs): uploaded like a mesh, driven by
 the sample motion, skinned by three.js exactly like our numpy LBS, recorded to a validator-clean GLB, its
-bone map edited and saved next to it; a fox is refused as an avatar and loaded for possession instead."""
+bone map edited and saved next to it, then driven by the webcam (a dancer on the fake camera); a fox is refused as an avatar and loaded for possession instead."""
 from __future__ import annotations
 
 import json
@@ -29,7 +29,8 @@ def test_an_avatar_in_the_studio_page(data_dir, tmp_path):
     cesium = data_dir / "avatars" / "CesiumMan.glb"
     config = {"avatar": str(cesium), "fox": str(data_dir / "avatars" / "Fox.glb"),
               "frame": {"positions": frame.positions.tolist(), "tracked": frame.tracked.tolist()},
-              "shoulderCenter": "joint2", "artifacts": str(HERE / "artifacts")}
+              "shoulderCenter": "joint2", "artifacts": str(HERE / "artifacts"),
+              "video": str(ROOT / ".." / "shared" / "data" / "video" / "pose_1_320x240_30fps.y4m")}
     proc, url = start_server(sample_motion=True)
     try:
         out = subprocess.run(["node", str(HERE / "driver_avatar.mjs"), json.dumps({**config, "url": url + "/"})],
@@ -45,6 +46,7 @@ def test_an_avatar_in_the_studio_page(data_dir, tmp_path):
     steps = {s["step"]: s for s in result["steps"]}
     assert steps["avatar driven"]["source"] == "sample"
     assert result["spread"] > 0.05                     # the walk moves the avatar's vertices (metres)
+    assert steps["camera drives the avatar"]["source"] == "me" and result["cameraSpread"] > 0.05
 
     # the page's three.js skinning of the given frame = our retarget + numpy LBS, placed like the page
     avatar = load_avatar(cesium)
