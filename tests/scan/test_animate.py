@@ -9,11 +9,13 @@ import shutil
 
 import numpy as np
 import pytest
+import trimesh
 from export.gltf_player import GltfPlayer
 from export.takes import validate_gltf
 
 from kinetre.cli import main
-from kinetre.scan.subject import FLAT, principal_spread
+from kinetre.mesh.load import load_mesh
+from kinetre.scan.subject import FLAT, principal_spread, shape_notes
 
 pytest.importorskip("open3d")
 
@@ -58,3 +60,18 @@ def test_scan_options_need_frames(data_dir, tmp_path, capsys):
                  str(data_dir / "bvh" / "cmu_12_01_walk.bvh"), "--segment", "change", "-o",
                  str(tmp_path / "x.glb")]) == 2
     assert "apply when the input is RGB-D frames" in capsys.readouterr().err
+
+
+
+def _mesh(tm, tmp_path):
+    path = tmp_path / f"{id(tm)}.ply"
+    tm.export(path)
+    return load_mesh(path)
+
+
+def test_a_flat_sheet_is_told_apart_from_an_object(data_dir, tmp_path):
+    wall = _mesh(trimesh.creation.box(extents=(1.3, 1.2, 0.02)), tmp_path)
+    notes = shape_notes(wall, "wall")
+    assert len(notes) == 1 and "flat sheet" in notes[0] and "--segment change" in notes[0]
+    assert shape_notes(load_mesh(data_dir / "meshes" / "spot.obj"), "spot") == ()
+    assert shape_notes(_mesh(trimesh.creation.box(extents=(0.5, 0.9, 0.4)), tmp_path), "a chair-sized box") == ()
