@@ -100,3 +100,21 @@ def face_take(path, landmark_file=None, *, max_frames: int | None = None, turn: 
     if landmark_file is not None:
         raise BadFaceError(f"{landmark_file}: a landmark file goes with a still image, not a video")
     return face_from_video(path, max_frames=max_frames, turn=turn)
+
+
+def face_from_landmarks(frames, width: int, height: int, image: bytes, mime: str, fps: float,
+                        *, turn: bool = False) -> FaceTake:
+    """A take recorded elsewhere (the studio page): per-frame landmarks (468, 2|3) pixels, None when lost."""
+    out, last = [], None
+    for landmarks in frames:
+        if landmarks is not None:
+            try:
+                last = reconstruct(np.asarray(landmarks, dtype=float), width, height, turn=turn)
+            except BadFaceError:
+                if last is None and len(frames) == 1:
+                    raise
+        if last is not None:
+            out.append(last)
+    if not out:
+        raise BadFaceError("face take: no frame holds a face")
+    return FaceTake(out, image, mime, fps=fps, tracked=sum(f is not None for f in frames))

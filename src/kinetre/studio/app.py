@@ -50,6 +50,7 @@ from ..physics.spheres import studio_packing
 from .access import TokenGate, check_bind
 from .avatars import Shelf, avatar_routes
 from .channels import Frame, Hub
+from .face_routes import face_routes
 from .natsbus import NatsChannels
 from .placement import standing_mesh
 from .protocol import ProtocolError, parse_message, parse_skeleton, with_client
@@ -519,6 +520,7 @@ def create_app(mesh_path: str | None = None, nodes: int = NODES, sample_motion: 
         Route("/api/record/stop", record_stop, methods=["POST"]),
         Route("/api/takes/{take_id:int}/{name}", take_get),
         *avatar_routes(shelf),
+        *face_routes(),
     ]
     static = static_dir()
     if (static / "index.html").is_file():

@@ -2,6 +2,7 @@
 // transforms, the user's own capture (camera → MediaPipe → Kinect 20 → the user's skeleton channel),
 // other users' skeletons, the rigging view, voice, and takes.
 import { Camera } from '../capture/Camera';
+import { FaceController, installFaceTestHook } from '../face/FaceController';
 import { KinectMapper } from '../capture/KinectMapper';
 import { PoseTracker } from '../capture/PoseTracker';
 import { JOINT_COUNT } from '../capture/kinect20';
@@ -41,6 +42,7 @@ export class Studio {
   readonly jointMap: JointMapControl;
   readonly avatars: AvatarStage;
   readonly physics: Playground;
+  readonly face: FaceController;
   graphMesh: SkinnedGraphMesh | null = null;
   preview: AttachPreview | null = null;
   state: SceneState | null = null;
@@ -100,6 +102,8 @@ export class Studio {
     });
     this.viewport.onFrame(() => this.frame());
     this.physics = new Playground(this);
+    this.face = new FaceController(this.camera, this.viewport, this.panel.root, (t, e) => this.panel.setMessage(t, e));
+    installFaceTestHook(this.face);
   }
 
   start(): void {
