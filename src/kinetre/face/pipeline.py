@@ -9,6 +9,7 @@ import numpy as np
 from ..errors import BadFaceError
 from .landmarks import FaceTracker, read_landmarks
 from .reconstruct import FaceFrame, reconstruct
+from .template import load_template
 
 IMAGE_EXTS = (".jpg", ".jpeg", ".png", ".bmp", ".webp", ".tif", ".tiff")
 
@@ -106,13 +107,16 @@ def face_from_landmarks(frames, width: int, height: int, image: bytes, mime: str
                         *, turn: bool = False) -> FaceTake:
     """A take recorded elsewhere (the studio page): per-frame landmarks (468, 2|3) pixels, None when lost."""
     out, last = [], None
-    for landmarks in frames:
+    n = load_template().size
+    for k, landmarks in enumerate(frames):
         if landmarks is not None:
+            landmarks = np.asarray(landmarks, dtype=float)
+            if landmarks.shape not in ((n, 2), (n, 3)) or not np.isfinite(landmarks).all():
+                raise BadFaceError(f"face take: frame {k} must hold {n} finite landmarks, got shape {landmarks.shape}")
             try:
-                last = reconstruct(np.asarray(landmarks, dtype=float), width, height, turn=turn)
+                last = reconstruct(landmarks, width, height, turn=turn)
             except BadFaceError:
-                if last is None and len(frames) == 1:
-                    raise
+                pass                      # a head turned too far: keep the last good face
         if last is not None:
             out.append(last)
     if not out:

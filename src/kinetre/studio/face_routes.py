@@ -38,10 +38,12 @@ def export_face(body: dict) -> bytes:
         if not isinstance(raw, list) or not 0 < len(raw) <= MAX_FRAMES:
             raise KinetreError(f"face take: between 1 and {MAX_FRAMES} frames, got {len(raw) if isinstance(raw, list) else raw!r}")
         frames = [None if f is None else np.asarray(f, dtype=float).reshape(-1, 3) for f in raw]
-        image = base64.b64decode(body["image"])
+        image = base64.b64decode(body["image"], validate=True)
         weights = np.asarray(body.get("weights", [0.0] * len(NAMES)), dtype=float).reshape(len(NAMES))
     except (KeyError, TypeError, ValueError) as e:
         raise KinetreError(f"face take: malformed request ({e})") from None
+    if not image.startswith(b"\xff\xd8"):
+        raise KinetreError("face take: the texture must be a base64 JPEG image")
     take = face_from_landmarks(frames, width, height, image, "image/jpeg", fps, turn=bool(body.get("turn")))
     with tempfile.TemporaryDirectory() as tmp:
         path = Path(tmp) / "face.glb"

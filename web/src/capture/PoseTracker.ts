@@ -9,12 +9,13 @@ export interface PoseResult {
   image: NormalizedLandmark[];
 }
 
-function loadScript(src: string): Promise<void> {
+/** Load a classic script once (the MediaPipe solutions define their class on window). */
+export function loadScript(src: string): Promise<void> {
   return new Promise((resolve, reject) => {
     const script = document.createElement('script');
     script.src = src;
     script.onload = () => resolve();
-    script.onerror = () => reject(new Error(`PoseTracker: cannot load ${src}`));
+    script.onerror = () => reject(new Error(`cannot load ${src}`));
     document.head.appendChild(script);
   });
 }
