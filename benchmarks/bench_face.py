@@ -4,11 +4,18 @@ Prints one JSON object per line: {"bench": "face", ...} for the reconstruction (
 template-depth back-projection, five caricature morphs, chin anchor) and {"bench": "face_tracking", ...}
 for MediaPipe Face Mesh itself in Python (for scale; the studio tracks in the page). Landmarks are tracked
 once; the reconstruction is timed over many repeats of each photo's landmarks, median per frame.
+{"bench": "face_page", ...}: landmarks per second in the studio page (Face Mesh in wasm + Algorithm 2 +
+the puppet) in headless Chromium on SwiftShader, the fake camera playing the portrait panned (10 s);
+skipped with a note when the page is not built or node/chromium are missing.
 """
 from __future__ import annotations
 
 import json
 import os
+import shutil
+import subprocess
+import sys
+import tempfile
 import time
 from pathlib import Path
 
@@ -20,7 +27,9 @@ from kinetre.face.landmarks import FaceTracker
 from kinetre.face.reconstruct import reconstruct
 
 os.environ.setdefault("GLOG_minloglevel", "2")
-FACES = Path(__file__).resolve().parents[1] / ".." / "shared" / "data" / "images" / "face"
+ROOT = Path(__file__).resolve().parents[1]
+FACES = ROOT / ".." / "shared" / "data" / "images" / "face"
+sys.path.insert(0, str(ROOT / "tests"))
 
 
 def main(repeats: int = 400) -> None:
@@ -48,5 +57,33 @@ def main(repeats: int = 400) -> None:
                       "note": "static-image mode (detector + landmarks each image)"}))
 
 
+def page_rate(seconds: float = 10.0) -> None:
+    from face.fixtures_face import pan_video
+    from studio.conftest import start_server
+    if not (ROOT / "src" / "kinetre" / "studio" / "static" / "index.html").is_file() or not shutil.which("node"):
+        print(json.dumps({"bench": "face_page", "skipped": "page not built or node missing"}))
+        return
+    proc, url = start_server(nodes=64, sample_motion=False)
+    try:
+        with tempfile.TemporaryDirectory() as tmp:
+            video = Path(tmp) / "pan.y4m"
+            pan_video((FACES / "face_frontal_portrait.jpg").resolve(), video, seconds=3.0)
+            config = {"scenario": "rate", "url": url, "video": str(video), "seconds": seconds, "artifacts": tmp}
+            out = subprocess.run(["node", str(ROOT / "tests" / "e2e" / "driver_face.mjs"), json.dumps(config)],
+                                 capture_output=True, text=True, timeout=400, cwd=ROOT)
+        result = json.loads(out.stdout.strip().splitlines()[-1])
+        if not result.get("ok"):
+            print(json.dumps({"bench": "face_page", "error": result.get("error", "")[:300]}))
+            return
+        r = result["rate"]
+        print(json.dumps({"bench": "face_page", "landmarks_per_second": round(r["landmarksPerSecond"], 2),
+                          "detect_ms": r["detectMs"], "renderer": "SwiftShader (headless Chromium, --disable-gpu)",
+                          "camera": "320x240 fake camera", "seconds": seconds}))
+    finally:
+        proc.terminate()
+        proc.wait(10)
+
+
 if __name__ == "__main__":
     main()
+    page_rate()

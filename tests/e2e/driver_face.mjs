@@ -50,10 +50,18 @@ async function face() {
     mkdirSync(config.artifacts, { recursive: true });
     await page.screenshot({ path: join(config.artifacts, 'face-live.png') });
     result.rate = await faceState(page);
-    // a caricature preset: the puppet's eyes grow
+    // a caricature preset from the panel; its effect measured on one frame (no tracking update between)
     await page.selectOption('#face-preset', 'big eyes');
     await page.waitForTimeout(300);
     result.caricature = await faceState(page);
+    result.morphEffect = await page.evaluate(() => {
+      const face = window.kinetreFace.face;
+      const weights = [...face.weights];
+      face.setMorphs(weights.map(() => 0));
+      const plain = window.kinetreFace.state().vertices;
+      face.setMorphs(weights);
+      return { plain, morphed: window.kinetreFace.state().vertices };
+    });
     await page.screenshot({ path: join(config.artifacts, 'face-big-eyes.png') });
     // a face take: record ~3 s, the server exports a GLB
     await page.click('#face-record');
@@ -116,7 +124,25 @@ async function annotate() {
   }
 }
 
-const scenarios = { face, annotate };
+async function rate() {
+  // landmarks per second in the page: Face Mesh + Algorithm 2 + the puppet, on the fake camera
+  const { browser, page } = await openPage('/?noshadows');
+  try {
+    await page.waitForFunction(() => window.kinetreFace && window.kinetreFace.face.template !== null, null, { timeout: 60000 });
+    await page.keyboard.press('g');
+    await page.waitForFunction(() => window.kinetreFace.state().tracked >= 3, null, { timeout: 180000, polling: 250 });
+    const first = await faceState(page);
+    const start = Date.now();
+    await page.waitForTimeout((config.seconds ?? 10) * 1000);
+    const last = await faceState(page);
+    result.rate = { landmarksPerSecond: (last.tracked + last.lost - first.tracked - first.lost) / ((Date.now() - start) / 1000),
+      detectMs: last.detectMs, tracked: last.tracked - first.tracked, lost: last.lost - first.lost };
+  } finally {
+    await browser.close();
+  }
+}
+
+const scenarios = { face, annotate, rate };
 try {
   await scenarios[config.scenario]();
   result.ok = true;

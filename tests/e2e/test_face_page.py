@@ -94,7 +94,7 @@ def test_live_face_puppet_moves_takes_caricatures_and_exports(page_url, face_y4m
     (ARTIFACTS / "face-rate.json").write_text(json.dumps({"landmarks_per_second": r["rate"]["landmarksPerSecond"],
                                                           "detect_ms": r["rate"]["detectMs"]}))
     # the "big eyes" preset: outer eye corners (33, 263) move apart relative to forehead-chin (10, 152)
-    before, after = np.array(r["rate"]["vertices"]), np.array(r["caricature"]["vertices"])
+    before, after = np.array(r["morphEffect"]["plain"]), np.array(r["morphEffect"]["morphed"])
     ratio = lambda p: np.linalg.norm(p[3] - p[6]) / np.linalg.norm(p[2] - p[5])   # sample: 0 1 10 33 61 152 263 291
     assert r["caricature"]["weights"] == [1, 0, 0, 0, 0]
     assert ratio(after) > 1.05 * ratio(before)

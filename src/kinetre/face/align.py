@@ -45,7 +45,7 @@ def umeyama(source: np.ndarray, target: np.ndarray, weights: np.ndarray) -> Simi
 
 
 def align(points: np.ndarray, template: np.ndarray, weights: np.ndarray, *, iterations: int = 20,
-          tolerance: float = 1e-9) -> Similarity:
+          tolerance: float = 1e-6) -> Similarity:
     """Pose of `template` (n, 3) that best explains `points` (n, 2) or (n, 3) in the y-up camera frame.
 
     `points` with a third column are aligned in 3D at once; 2D points run Gauss-Newton from the weighted
