@@ -81,6 +81,22 @@ async function face() {
       result.glb = join(config.artifacts, 'face-take.glb');
       writeFileSync(result.glb, Buffer.from(b64, 'base64'));
     }
+    if (config.avatar) {
+      // an avatar dropped on the page: the face rides on its neck
+      await page.setInputFiles('#file', config.avatar);
+      await page.waitForFunction(() => window.kinetre.state().avatar.ready, null, { timeout: 120000, polling: 250 });
+      await page.waitForTimeout(500);
+      result.onAvatar = await page.evaluate(() => {
+        const s = window.kinetreFace.state();
+        const at = (j) => {
+          const b = window.kinetre.studio.avatars.bone(j);
+          b.updateWorldMatrix(true, false);
+          return [b.matrixWorld.elements[12], b.matrixWorld.elements[13], b.matrixWorld.elements[14]];
+        };
+        return { anchor: s.anchor, chin: s.chin, vertices: s.vertices, neck: at('ShoulderCenter'), head: at('Head') };
+      });
+      await page.screenshot({ path: join(config.artifacts, 'face-on-avatar.png') });
+    }
   } finally {
     await browser.close();
   }

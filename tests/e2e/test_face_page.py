@@ -73,7 +73,8 @@ def tracked():
 
 def test_live_face_puppet_moves_takes_caricatures_and_exports(page_url, face_y4m, tracked):
     cases = [{"landmarks": lm.ravel().tolist(), "width": w, "height": h} for lm, w, h in tracked]
-    r = drive(page_url, "face", face_y4m, cases=cases)
+    avatar = (ROOT / ".." / "shared" / "data" / "avatars" / "CesiumMan.glb").resolve()
+    r = drive(page_url, "face", face_y4m, cases=cases, avatar=str(avatar))
     # the page's Algorithm 2 gives the Python module's face (float32 vs float64)
     chin = load_template().chin
     for (lm, w, h), got in zip(tracked, r["reconstructed"]):
@@ -106,6 +107,14 @@ def test_live_face_puppet_moves_takes_caricatures_and_exports(page_url, face_y4m
     assert glb.meshes[0].extras["targetNames"][: len(NAMES)] == list(NAMES)
     assert glb.meshes[0].weights[:len(NAMES)] == [1.0, 0, 0, 0, 0]
     assert glb.animations and len(glb.meshes[0].primitives[0].targets) == len(NAMES) + r["take"]["frames"] - 1
+
+    # on an avatar: the chin on its neck, the face upright above it (sample index 2 is vertex 10, the forehead)
+    on = r["onAvatar"]
+    neck, head, chin = (np.array(on[k]) for k in ("neck", "head", "chin"))
+    assert on["anchor"] == "avatar"
+    assert np.linalg.norm(chin - neck) < 0.12 and chin[2] - neck[2] > 0.05        # in front: it faces the camera
+    up = (head - neck) / np.linalg.norm(head - neck)
+    assert (np.array(on["vertices"][2]) - chin) @ up > 0.1                           # life size, upright
 
 
 def _projected(pose: dict) -> np.ndarray:

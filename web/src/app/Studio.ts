@@ -3,6 +3,7 @@
 // other users' skeletons, the rigging view, voice, and takes.
 import { Camera } from '../capture/Camera';
 import { FaceController, installFaceTestHook } from '../face/FaceController';
+import { neckAnchor } from '../face/neckAnchor';
 import { KinectMapper } from '../capture/KinectMapper';
 import { PoseTracker } from '../capture/PoseTracker';
 import { JOINT_COUNT } from '../capture/kinect20';
@@ -103,6 +104,7 @@ export class Studio {
     this.viewport.onFrame(() => this.frame());
     this.physics = new Playground(this);
     this.face = new FaceController(this.camera, this.viewport, this.panel.root, (t, e) => this.panel.setMessage(t, e));
+    this.face.anchor = () => neckAnchor((joint) => this.avatars.bone(joint));  // on an avatar's neck, if any
     installFaceTestHook(this.face);
   }
 

@@ -227,6 +227,12 @@ export class AvatarStage {
     this.section.hidden = true;
   }
 
+  /** The avatar's bone mapped to a Kinect-20 joint (e.g. 'ShoulderCenter'), or null (a face rides on it). */
+  bone(kinectJoint: string): THREE.Object3D | null {
+    const j = this.retargeter ? this.payload?.map[kinectJoint] : undefined;
+    return j === undefined ? null : this.bones[j] ?? null;
+  }
+
   /** For tests: what is loaded, who drives it, and a sample of skinned vertices (world, metres). */
   state(count = 48): object {
     const vertices: number[][] = [];

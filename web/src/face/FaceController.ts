@@ -201,6 +201,8 @@ export function installFaceTestHook(face: FaceController): void {
         vertices: face.puppet ? face.puppet.worldPositions(sample) : [],
         uvs: face.puppet ? sample.map((i) => Array.from((face.puppet as FacePuppet).mesh.geometry.getAttribute('uv').array.slice(2 * i, 2 * i + 2))) : [],
         take: face.lastTake,
+        anchor: face.anchor?.() ? 'avatar' : 'stand',
+        chin: face.puppet ? face.puppet.worldPositions([face.template?.chin ?? 152])[0] : null,
       };
     },
     reconstruct(landmarks: number[], width: number, height: number) {

@@ -10,6 +10,7 @@ export interface FaceAnchor {
   position: THREE.Vector3;
   quaternion: THREE.Quaternion;
   scale?: number;             // the puppet's size (1 = life size)
+  overlay?: boolean;          // draw over what is there (an avatar's own head), like a mask
 }
 
 const CM = 0.01;
@@ -67,6 +68,11 @@ export class FacePuppet {
     this.mesh.position.copy(anchor.position);
     this.mesh.quaternion.copy(anchor.quaternion).multiply(this.turn);
     this.mesh.scale.setScalar(anchor.scale ?? 1);
+    const overlay = anchor.overlay ?? false;
+    if (this.mesh.material.depthTest === overlay) {
+      this.mesh.material.depthTest = !overlay;
+      this.mesh.renderOrder = overlay ? 10 : 0;
+    }
   }
 
   setMorphs(weights: number[]): void {
