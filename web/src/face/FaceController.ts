@@ -59,7 +59,7 @@ export class FaceController {
     this.button.addEventListener('click', () => void this.toggle());
     this.recordButton.addEventListener('click', () => void this.toggleRecord());
     window.addEventListener('keydown', (e) => {
-      if (e.key.toLowerCase() === 'g' && !(e.target instanceof HTMLInputElement) && !e.repeat) void this.toggle();
+      if (e.key.toLowerCase() === 'g' && !(e.target instanceof HTMLInputElement || e.target instanceof HTMLSelectElement) && !e.repeat) void this.toggle();
     });
     void fetchFaceTemplate().then((t) => this.buildSliders(t, $('face-sliders'), $<HTMLSelectElement>('face-preset')))
       .catch((err) => this.say(`face: ${(err as Error).message}`, true));
