@@ -53,6 +53,7 @@ def bench_build_graph():
 # one record per design: the default (two-level PCG), the other preconditioners, and the exact reference
 DESIGNS = {
     "pcg_two_level": SolverSettings(),
+    "pcg_additive": SolverSettings(preconditioner="additive"),
     "pcg_coordinate": SolverSettings(preconditioner="coordinate"),
     "pcg_block_jacobi": SolverSettings(preconditioner="block_jacobi"),
     "exact_gn": SolverSettings(method="exact"),

@@ -115,25 +115,18 @@ def _hessian_times(kp, ki, kx, rot, rig, bridges, damp, y, out):
 
 @njit(cache=True)
 def node_factors(k_blocks, rot, rig, bridges, damp, out):
-    """Cholesky factors (lower, in `out` (N, 12, 12)) of H's diagonal 12×12 node blocks; `k_blocks`
-    (N, 4, 4) are K's diagonal blocks."""
+    """Factor H's diagonal 12×12 node blocks (N, 4, 4 `k_blocks`: K's diagonal blocks) into `out` (N, 12, 12).
+
+    A node's t unknowns meet only K (diagonal per coordinate: k_tt I₃ + damping) and, through K, its
+    own R, so they are eliminated first: out[:9, :9] holds the Cholesky factor of the 9×9 Schur
+    complement S = A − C D⁻¹ Cᵀ (reciprocal diagonal), out[9 + a, 9 + a] = 1 / D_a and out[9, b] = K[b, 3].
+    """
     n = rot.shape[0]
     for j in range(n):
         a = out[j]
-        for u in range(12):
-            for v in range(12):
-                a[u, v] = 0.0
-        for b in range(4):
-            for bb in range(4):
-                w = k_blocks[j, b, bb]
-                a[3 * b, 3 * bb] = w
-                a[3 * b + 1, 3 * bb + 1] = w
-                a[3 * b + 2, 3 * bb + 2] = w
         for u in range(9):
             for v in range(9):
-                a[u, v] += rot[j, u, v]
-        for u in range(12):
-            a[u, u] += damp[12 * j + u]
+                a[u, v] = rot[j, u, v]
     for e in range(bridges.shape[0]):
         for s in range(2):
             a = out[bridges[e, s]]
@@ -142,40 +135,53 @@ def node_factors(k_blocks, rot, rig, bridges, damp, out):
                     a[u, v] += rig[e, 9 * s + u, 9 * s + v]
     for j in range(n):
         a = out[j]
-        for c in range(12):
+        kb = k_blocks[j]
+        o = 12 * j
+        for c in range(3):
+            a[9 + c, 9 + c] = 1.0 / (kb[3, 3] + damp[o + 9 + c])
+            a[9, c] = kb[c, 3]
+        for b in range(3):
+            for bb in range(3):
+                kk = kb[b, bb]
+                kt = kb[b, 3] * kb[bb, 3]
+                for c in range(3):
+                    a[3 * b + c, 3 * bb + c] += kk - kt * a[9 + c, 9 + c]
+        for u in range(9):
+            a[u, u] += damp[o + u]
+        for c in range(9):
             d = a[c, c]
             for k in range(c):
                 d -= a[c, k] * a[c, k]
-            d = np.sqrt(d) if d > 0.0 else 1e-300
-            a[c, c] = d
-            inv = 1.0 / d
-            for r in range(c + 1, 12):
+            d = np.sqrt(d) if d > 0.0 else 1e-150
+            a[c, c] = 1.0 / d  # reciprocals on the diagonal: the solves multiply
+            for r in range(c + 1, 9):
                 s = a[r, c]
                 for k in range(c):
                     s -= a[r, k] * a[c, k]
-                a[r, c] = s * inv
-        for c in range(12):  # keep reciprocals on the diagonal: the solves multiply
-            a[c, c] = 1.0 / a[c, c]
+                a[r, c] = s * a[c, c]
 
 
 @njit(cache=True)
 def _node_solve(factors, r, out):
     """out = blockdiag(node blocks)⁻¹ r with the factors of `node_factors`."""
-    z = np.empty(12)
+    z = np.empty(9)
     for j in range(factors.shape[0]):
         a = factors[j]
         o = 12 * j
-        for c in range(12):
-            s = r[o + c]
+        for c in range(9):  # forward, on f − C D⁻¹ h
+            s = r[o + c] - a[9, c // 3] * r[o + 9 + c % 3] * a[9 + c % 3, 9 + c % 3]
             for k in range(c):
                 s -= a[c, k] * z[k]
             z[c] = s * a[c, c]
-        for c in range(11, -1, -1):
+        for c in range(8, -1, -1):
             s = z[c]
-            for k in range(c + 1, 12):
+            for k in range(c + 1, 9):
                 s -= a[k, c] * z[k]
             z[c] = s * a[c, c]
             out[o + c] = z[c]
+        for c in range(3):  # t = D⁻¹ (h − Cᵀ u)
+            out[o + 9 + c] = (r[o + 9 + c] - a[9, 0] * z[c] - a[9, 1] * z[3 + c] - a[9, 2] * z[6 + c]) \
+                * a[9 + c, 9 + c]
 
 
 @njit(cache=True)

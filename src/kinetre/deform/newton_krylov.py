@@ -36,10 +36,8 @@ def gauss_newton_pcg(x, g, edges, con_nodes, con_weights, con_points, targets, a
     nu = 2.0
     iterations = accepted = cg_total = 0
     decrease = 0.0
+    trial = np.empty(m)
     while iterations < max_iterations and energy > energy_floor:
-        if accepted > 0:
-            energy_gradient(x, g, edges, con_nodes, con_weights, con_points, targets, active, bridges,
-                            w_rot, w_reg, w_con, w_rig, grad, True)
         for j in range(n):
             for a in range(3):
                 for b in range(3):
@@ -87,14 +85,16 @@ def gauss_newton_pcg(x, g, edges, con_nodes, con_weights, con_points, targets, a
                     for b in range(3):
                         x_new[j, 3 * a + b] = x[j, 3 * a + b] + dy[o + 3 * b + a]
                     x_new[j, 9 + a] = x[j, 9 + a] + dy[o + 9 + a]
+            # the gradient comes almost free with the energy, and is the next one if the step is taken
             e_new = energy_gradient(x_new, g, edges, con_nodes, con_weights, con_points, targets, active,
-                                    bridges, w_rot, w_reg, w_con, w_rig, grad, False)
+                                    bridges, w_rot, w_reg, w_con, w_rig, trial, True)
             if np.isfinite(e_new) and e_new < energy:
                 decrease = energy - e_new
                 rho = decrease / max(predicted, 1e-300)
                 lam = max(lam * max(1.0 / 3.0, 1.0 - (2.0 * rho - 1.0) ** 3), 1e-12)
                 nu = 2.0
                 x[:] = x_new
+                grad[:] = trial
                 energy = e_new
                 energies[count] = energy
                 count += 1

@@ -20,11 +20,12 @@ import numpy as np
 
 from .coordinate_split import CoordinateSplit
 from .factor import NotPositiveDefinite, ReusedCholesky
-from .krylov import BLOCK_JACOBI, COORDINATE, TWO_LEVEL
+from .gradient import energy_gradient
+from .krylov import ADDITIVE, BLOCK_JACOBI, COORDINATE, TWO_LEVEL
 from .newton_krylov import gauss_newton_pcg
 from .normal_equations import NormalEquations
 
-PRECONDITIONERS = {"coordinate": COORDINATE, "block_jacobi": BLOCK_JACOBI, "two_level": TWO_LEVEL}
+PRECONDITIONERS = {"coordinate": COORDINATE, "block_jacobi": BLOCK_JACOBI, "two_level": TWO_LEVEL, "additive": ADDITIVE}
 
 
 @dataclass(frozen=True)
@@ -32,10 +33,14 @@ class SolverSettings:
     """How `Rig.solve` minimises E per frame.
 
     method : "pcg" (default) or "exact" (sparse Cholesky of the full system, the reference)
-    preconditioner : for "pcg": "two_level" (K_σ, node blocks, K_σ), "coordinate" (K_σ only) or
-        "block_jacobi" (node blocks only); see `krylov.py`
+    preconditioner : for "pcg": "two_level" (K_σ, node blocks, K_σ), "additive" (K_σ + node blocks),
+        "coordinate" (K_σ only) or "block_jacobi" (node blocks only); see `krylov.py`. Only the ones with
+        K_σ carry the graph-wide coupling: block Jacobi alone stalls when few nodes are constrained
     cg_iterations, cg_tolerance : CG iterations per Gauss-Newton step at most, and the relative
         residual that ends them earlier
+    jump : for "pcg": a frame whose starting energy exceeds `jump` times the last solve's result (and
+        the first solve) is solved exactly: on a big move, steps from a few CG iterations can lead into
+        a worse local minimum than full steps
     reuse_factor : for "exact": keep the numeric factor while its steps keep lowering E
     """
 
@@ -46,8 +51,9 @@ class SolverSettings:
     reuse_factor: bool = False
     method: str = "pcg"
     preconditioner: str = "two_level"
-    cg_iterations: int = 4
-    cg_tolerance: float = 1e-2
+    cg_iterations: int = 8
+    cg_tolerance: float = 5e-2
+    jump: float = 10.0
 
     def __post_init__(self):
         if self.method not in ("pcg", "exact"):
@@ -83,6 +89,8 @@ class GaussNewton:
         self._rot = np.zeros((nodes, 9, 9))
         self._rig = np.zeros((len(system.bridges), 18, 18))
         self._node_fac = np.zeros((nodes, 12, 12))
+        self._no_gradient = np.zeros(0)
+        self._last_energy = None  # the last solve's result ("pcg")
         # Below this, residuals are at round-off level (1e-10 of the graph's size per residual).
         extent = float(np.ptp(system.b_con.reshape(-1, 3), axis=0).max()) if len(system.b_con) else 1.0
         rows = 6 * system.n // 12 + len(system.b_reg) + len(system.b_con)
@@ -100,6 +108,14 @@ class GaussNewton:
             self._factor = ReusedCholesky(self.system.matrix(np.ones(len(self.system.indices))), self._backend)
         return self._factor
 
+    def energy(self, x: np.ndarray, targets: np.ndarray, active: np.ndarray) -> float:
+        """E (Eq. 8) at x (N, 12)."""
+        sysm, w, cons = self.system, self.system.weights, self.system.constraints
+        return energy_gradient(np.ascontiguousarray(x, dtype=np.float64), sysm.g, sysm.edges, cons.nodes,
+                               cons.weights, cons.points, np.ascontiguousarray(targets, dtype=np.float64),
+                               np.ascontiguousarray(active, dtype=np.float64), sysm.bridges, w.rot, w.reg, w.con,
+                               w.rig, self._no_gradient, False)
+
     @property
     def backend(self) -> str:
         return self.split.backend if self.split is not None else self.factor.backend
@@ -112,10 +128,28 @@ class GaussNewton:
             self._factored = False
         return self._linear_data
 
-    def solve(self, x0: np.ndarray, targets: np.ndarray, active: np.ndarray) -> SolveReport:
-        """Minimise E from x0 (N, 12) for constraint targets (L, 3) scaled by `active` (L,)."""
-        if self.settings.method == "pcg":
-            return self._solve_pcg(x0, targets, active)
+    def solve(self, x0: np.ndarray, targets: np.ndarray, active: np.ndarray,
+              guess: np.ndarray | None = None) -> SolveReport:
+        """Minimise E from x0 (N, 12) for constraint targets (L, 3) scaled by `active` (L,).
+
+        `guess` (N, 12), e.g. a pose extrapolated from the last frames, replaces x0 as the start when
+        its energy is lower.
+        """
+        e0 = self.energy(x0, targets, active)
+        if guess is not None:
+            e_guess = self.energy(guess, targets, active)
+            if e_guess < e0:
+                x0, e0 = guess, e_guess
+        if self.settings.method == "exact":
+            return self._solve_exact(x0, targets, active)
+        if self._last_energy is None or e0 > self.settings.jump * max(self._last_energy, self.energy_floor):
+            report = self._solve_exact(x0, targets, active)
+        else:
+            report = self._solve_pcg(x0, targets, active)
+        self._last_energy = report.energy
+        return report
+
+    def _solve_exact(self, x0: np.ndarray, targets: np.ndarray, active: np.ndarray) -> SolveReport:
         s = self.settings
         sysm = self.system
         linear = self._linear(active)
