@@ -69,6 +69,7 @@ try {
   await page.click('#avatar-map-save');
   await waitFor(page, () => /avatar map saved/.test(document.querySelector('#message').textContent));
   result.mapped = await page.evaluate(() => window.kinetre.studio.avatars.payload.how);
+  result.mapLink = await page.getAttribute('#avatar-map-file', 'href');
   log('map saved');
 
   await page.setInputFiles('#file', config.fox);

@@ -39,6 +39,7 @@ def test_an_avatar_in_the_studio_page(data_dir, tmp_path):
         assert result["ok"], result.get("error", "") + json.dumps(result["steps"])
         downloads = dict(result["downloads"])
         files = {k: httpx.get(url + downloads[k], timeout=30).content for k in ("avatar GLB", "avatar BVH")}
+        saved_map = httpx.get(url + "/" + result["mapLink"], timeout=30).json()
     finally:
         proc.terminate()
         proc.wait(10)
@@ -68,6 +69,6 @@ def test_an_avatar_in_the_studio_page(data_dir, tmp_path):
     assert report["issues"]["numErrors"] == 0 and report["issues"]["numWarnings"] == 0
     assert report["info"]["animationCount"] == 1
     assert files["avatar BVH"].startswith(b"HIERARCHY")
-    assert result["mapped"]["ShoulderCenter"] == "file"
+    assert result["mapped"]["ShoulderCenter"] == "file" and saved_map["kinect20"]["ShoulderCenter"] == "joint2"
     assert "not an upright humanoid" in result["foxMessage"] and "possess" in result["foxMessage"]
     assert result["meshAfterFox"] == "Fox.glb"

@@ -60,6 +60,8 @@ def test_an_incomplete_map_is_reported_then_completed_by_the_editor(client, data
     assert r.status_code == 200, r.json()
     done = r.json()
     assert done["missing"] == [] and done["how"]["ShoulderLeft"] == "file" and done["plan"] is not None
+    saved = client.get(f"/api/avatars/{body['id']}/map").json()
+    assert saved["avatar"] == "armless.glb" and saved["kinect20"]["ElbowLeft"] == "joint7"
     r = client.post(f"/api/avatars/{body['id']}/map", json={"kinect20": {"Elbow": "joint7"}})
     assert r.status_code == 400 and "'Elbow' is not a Kinect-20 joint" in r.json()["error"]
 

@@ -7,6 +7,7 @@
     GET  /api/avatars/{id}/file              the avatar file (the page loads it with three.js)
     POST /api/avatars/{id}/map               {"kinect20": {Kinect joint: avatar joint name}}: saved as JSON next to
                                              the avatar (used from then on), the plan recomputed
+    GET  /api/avatars/{id}/map               that JSON file, to keep next to one's own copy of the avatar
     POST /api/avatars/{id}/takes             {fps, positions (T x 20 x 3, null = untracked), tracked}: the frames
                                              that drove the avatar, retargeted again here and exported as GLB + BVH
     GET  /api/avatars/{id}/takes/{n}/{file}  a file of such a take
@@ -158,6 +159,11 @@ def avatar_routes(shelf: Shelf) -> list[Route]:
         found = entry(request)
         if found is None:
             return JSONResponse({"error": "no such avatar"}, 404)
+        if request.method == "GET":
+            saved = Path(map_path(str(found["path"])))
+            if not saved.is_file():
+                return JSONResponse({"error": f"{found['name']}: no map saved yet"}, 404)
+            return FileResponse(saved, media_type="application/json", filename=saved.name)
         try:
             body = await request.json()
             table = body.get("kinect20") if isinstance(body, dict) else None
@@ -197,7 +203,7 @@ def avatar_routes(shelf: Shelf) -> list[Route]:
     return [
         Route("/api/avatar", upload, methods=["POST"]),
         Route("/api/avatars/{avatar_id:int}/file", file),
-        Route("/api/avatars/{avatar_id:int}/map", save_map, methods=["POST"]),
+        Route("/api/avatars/{avatar_id:int}/map", save_map, methods=["GET", "POST"]),
         Route("/api/avatars/{avatar_id:int}/takes", take_post, methods=["POST"]),
         Route("/api/avatars/{avatar_id:int}/takes/{take:int}/{name}", take_get),
     ]

@@ -53,7 +53,8 @@ export class AvatarStage {
     this.section.id = 'avatar-section';
     this.section.className = 'row';
     this.section.hidden = true;
-    this.section.innerHTML = '<span id="avatar-name"></span> <button id="avatar-edit-map">Avatar map</button> <button id="avatar-remove">Remove avatar</button>';
+    this.section.innerHTML = '<span id="avatar-name"></span> <button id="avatar-edit-map">Avatar map</button> '
+      + '<button id="avatar-remove">Remove avatar</button> <a id="avatar-map-file" class="download" hidden>map JSON</a>';
     panel.appendChild(this.section);
     (this.section.querySelector('#avatar-edit-map') as HTMLButtonElement).addEventListener('click', () => this.openEditor());
     (this.section.querySelector('#avatar-remove') as HTMLButtonElement).addEventListener('click', () => this.remove());
@@ -207,10 +208,16 @@ export class AvatarStage {
     }
     this.editor?.dispose();
     this.editor = null;
+    // the saved map, to keep next to one's own copy of the avatar (the server's copy goes with the studio)
+    const link = this.section.querySelector('#avatar-map-file') as HTMLAnchorElement;
+    link.href = `api/avatars/${body.id}/map`;
+    link.download = `${body.name}.kinetre-map.json`;
+    link.hidden = false;
     this.say(`avatar map saved next to ${body.name}: the avatar follows the skeleton`);
   }
 
   private clear(): void {
+    (this.section.querySelector('#avatar-map-file') as HTMLElement).hidden = true;
     this.model?.removeFromParent();
     this.model = null;
     this.bones = [];
