@@ -80,6 +80,8 @@ async function face() {
       }, result.take.url);
       result.glb = join(config.artifacts, 'face-take.glb');
       writeFileSync(result.glb, Buffer.from(b64, 'base64'));
+      result.played = await page.evaluate((url) => window.kinetreFace.play(url, [0, 1, 10, 33, 61, 152, 263, 291]),
+        result.take.url);
     }
     if (config.avatar) {
       // an avatar dropped on the page: the face rides on its neck

@@ -107,6 +107,11 @@ def test_live_face_puppet_moves_takes_caricatures_and_exports(page_url, face_y4m
     assert glb.meshes[0].extras["targetNames"][: len(NAMES)] == list(NAMES)
     assert glb.meshes[0].weights[:len(NAMES)] == [1.0, 0, 0, 0, 0]
     assert glb.animations and len(glb.meshes[0].primitives[0].targets) == len(NAMES) + r["take"]["frames"] - 1
+    # three.js (GLTFLoader + AnimationMixer) plays it as the glTF reading says: base + Σ weight · target
+    played = r["played"]
+    assert played["targets"] == len(NAMES) + r["take"]["frames"] - 1
+    expected = _player_positions(glb, played["times"], [0, 1, 10, 33, 61, 152, 263, 291])
+    assert np.abs(np.array(played["positions"]) - expected).max() < 1e-5
 
     # on an avatar: the chin on its neck, the face upright above it (sample index 2 is vertex 10, the forehead)
     on = r["onAvatar"]
@@ -115,6 +120,27 @@ def test_live_face_puppet_moves_takes_caricatures_and_exports(page_url, face_y4m
     assert np.linalg.norm(chin - neck) < 0.12 and chin[2] - neck[2] > 0.05        # in front: it faces the camera
     up = (head - neck) / np.linalg.norm(head - neck)
     assert (np.array(on["vertices"][2]) - chin) @ up > 0.1                           # life size, upright
+
+
+def _player_positions(glb, times, indices) -> np.ndarray:
+    """Vertex positions (len(times), len(indices), 3) of a morph-animated glTF mesh at `times` (keys)."""
+    blob = glb.binary_blob()
+
+    def read(index, width):
+        acc = glb.accessors[index]
+        view = glb.bufferViews[acc.bufferView]
+        return np.frombuffer(blob, "<f4", acc.count * width, (view.byteOffset or 0) + (acc.byteOffset or 0)).reshape(acc.count, width)
+    prim = glb.meshes[0].primitives[0]
+    base = read(prim.attributes.POSITION, 3)
+    targets = np.stack([read(t["POSITION"], 3) for t in prim.targets])
+    sampler = glb.animations[0].samplers[0]
+    keys_t = read(sampler.input, 1)[:, 0]
+    weights = read(sampler.output, 1).reshape(len(keys_t), -1)
+    out = []
+    for t in times:
+        w = np.array([np.interp(t, keys_t, weights[:, k]) for k in range(weights.shape[1])])
+        out.append((base + np.tensordot(w, targets, axes=1))[indices])
+    return np.array(out)
 
 
 def _projected(pose: dict) -> np.ndarray:

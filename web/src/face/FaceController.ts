@@ -205,6 +205,25 @@ export function installFaceTestHook(face: FaceController): void {
         chin: face.puppet ? face.puppet.worldPositions([face.template?.chin ?? 152])[0] : null,
       };
     },
+    /** Play an exported face GLB in three.js (GLTFLoader + AnimationMixer): world positions of `indices`
+     *  at the animation's first `keys` keyframes, as a glTF player shows them. */
+    async play(url: string, indices: number[], keys = 4) {
+      const { GLTFLoader } = await import('three/examples/jsm/loaders/GLTFLoader.js');
+      const gltf = await new GLTFLoader().loadAsync(url);
+      let mesh: THREE.Mesh | null = null;
+      gltf.scene.traverse((o) => { if ((o as THREE.Mesh).isMesh && !mesh) mesh = o as THREE.Mesh; });
+      const mixer = new THREE.AnimationMixer(gltf.scene);
+      const clip = gltf.animations[0];
+      mixer.clipAction(clip).play();
+      const times = Array.from(clip.tracks[0].times.slice(0, keys));
+      const v = new THREE.Vector3();
+      const positions = times.map((t) => {
+        mixer.setTime(t);
+        gltf.scene.updateMatrixWorld(true);
+        return indices.map((i) => (mesh as THREE.Mesh).getVertexPosition(i, v).applyMatrix4((mesh as THREE.Mesh).matrixWorld).toArray());
+      });
+      return { times, positions, targets: ((mesh as THREE.Mesh | null)?.morphTargetInfluences ?? []).length };
+    },
     reconstruct(landmarks: number[], width: number, height: number) {
       const shape = face.template && reconstructFace(face.template, landmarks, width, height);
       return shape ? { face: Array.from(shape.face), uvs: Array.from(shape.uvs), scale: shape.pose.scale, rotation: shape.pose.rotation } : null;
