@@ -110,6 +110,18 @@ async function run() {
       return { name: a.download, hidden: a.hidden, b64: btoa(s) };
     });
     writeFileSync(config.out, Buffer.from(video.b64, 'base64'));
+    // the take and the mesh as the page got them, for the same replay in node
+    const take = await page.evaluate(async () => {
+      const s = window.kinetre.state();
+      const bytes = new Uint8Array(await (await fetch(s.take.files.transforms.replace(/^\//, ''))).arrayBuffer());
+      let b = '';
+      for (let i = 0; i < bytes.length; i += 0x8000) b += String.fromCharCode(...bytes.subarray(i, i + 0x8000));
+      const mesh = await (await fetch(`api/mesh/${s.meshId}`)).text();
+      return { transforms: btoa(b), mesh, fps: s.take.fps };
+    });
+    writeFileSync(config.takeTransforms, Buffer.from(take.transforms, 'base64'));
+    writeFileSync(config.takeMesh, take.mesh);
+    result.take = { fps: take.fps };
     result.video = { name: video.name, hidden: video.hidden, file: config.out };
     await shot(page, 'physics-replayed.png');
     log('replayed');

@@ -12,6 +12,7 @@ from pathlib import Path
 
 import pytest
 from studio.conftest import start_server
+from physics.node_replay import bundle, node_replay
 from studio.fixtures_voice import looped_command_wav
 
 HERE = Path(__file__).resolve().parent
@@ -29,7 +30,8 @@ def test_boxes_fall_reset_dodgeball_and_replay_to_video(reset_wav, tmp_path):
     proc, url = start_server(nodes=128, sample_motion=True)
     try:
         config = {"url": url, "audio": str(reset_wav), "artifacts": str(HERE / "artifacts"),
-                  "out": str(tmp_path / "replay.webm")}
+                  "out": str(tmp_path / "replay.webm"), "takeTransforms": str(tmp_path / "take.transforms"),
+                  "takeMesh": str(tmp_path / "mesh.json")}
         out = subprocess.run(["node", str(HERE / "driver_physics.mjs"), json.dumps(config)], capture_output=True,
                              text=True, timeout=400, cwd=ROOT)
     finally:
@@ -64,3 +66,11 @@ def test_boxes_fall_reset_dodgeball_and_replay_to_video(reset_wav, tmp_path):
     stream = json.loads(probe.stdout)["streams"][0]
     assert stream["codec_name"] == "vp8" and stream["r_frame_rate"] == "30/1"
     assert int(stream["nb_read_frames"]) == math.ceil(replay["steps"] / 2) + 1  # one frame per 1/30 s
+
+    # the same take through the same TypeScript modules in node: the same world, bit for bit
+    script = bundle(tmp_path / "replay_take.mjs")
+    again = node_replay(script, Path(config["takeMesh"]), Path(config["takeTransforms"]), r["take"]["fps"], runs=1,
+                        preset=replay["preset"], placement=replay["placement"])
+    assert again["frames"] == replay["frames"]
+    assert again["runs"][0]["knockedDown"] == replay["knockedDown"]
+    assert again["runs"][0]["states"] == replay["states"]

@@ -7,7 +7,6 @@ go to `write_take_transforms` (what /api/record/stop writes), the mesh payload i
 from __future__ import annotations
 
 import json
-import subprocess
 from pathlib import Path
 
 import numpy as np
@@ -18,19 +17,9 @@ import kinetre
 from kinetre.physics.take import read_take_transforms, write_take_transforms
 from kinetre.skeleton.models import KINECT20, Skeleton
 from kinetre.studio.app import data_path, mesh_payload, prepare_mesh
+from physics.node_replay import bundle, node_replay
 
-ROOT = Path(__file__).resolve().parents[2]
-WEB = ROOT / "web"
 FPS = 30.0
-
-
-def bundle(entry: Path, out: Path) -> Path:
-    """The TypeScript entry and the web modules it imports as one node ES module."""
-    esbuild = WEB / "node_modules" / ".bin" / "esbuild"
-    assert esbuild.is_file(), "web/node_modules is missing: run `npm ci` in web/"
-    subprocess.run([str(esbuild), str(entry), "--bundle", "--platform=node", "--format=esm", f"--outfile={out}",
-                    "--log-level=warning"], check=True, cwd=WEB, timeout=120)
-    return out
 
 
 def swing_take(mesh, graph, frames: int = 40) -> list:
@@ -57,16 +46,12 @@ def take(tmp_path_factory):
     poses = swing_take(mesh, graph)
     write_take_transforms(folder / "take.transforms", graph, poses, FPS)
     (folder / "mesh.json").write_text(json.dumps(mesh_payload(mesh, graph, 1, "spot.obj")))
-    script = bundle(Path(__file__).with_name("replay_take.ts"), folder / "replay_take.mjs")
+    script = bundle(folder / "replay_take.mjs")
     return folder, script, mesh, graph, poses
 
 
-def replay(folder: Path, script: Path, runs: int = 2, preset: str = "tower") -> dict:
-    config = {"mesh": str(folder / "mesh.json"), "transforms": str(folder / "take.transforms"), "fps": FPS,
-              "preset": preset, "runs": runs}
-    out = subprocess.run(["node", str(script), json.dumps(config)], capture_output=True, text=True, timeout=300)
-    assert out.returncode == 0, out.stderr[-2000:]
-    return json.loads(out.stdout.strip().splitlines()[-1])
+def replay(folder: Path, script: Path, runs: int = 2) -> dict:
+    return node_replay(script, folder / "mesh.json", folder / "take.transforms", FPS, runs)
 
 
 def test_take_transforms_round_trip(take):

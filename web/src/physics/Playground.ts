@@ -17,7 +17,10 @@ const LABELS: Record<PresetName | 'off', string> = {
 };
 const MAX_STEPS_PER_FRAME = 4; // a slow frame drops simulated time rather than spiralling
 
-export interface ReplayReport { frames: number; steps: number; knockedDown: number; boxes: number; videoBytes: number }
+export interface ReplayReport {
+  frames: number; steps: number; knockedDown: number; boxes: number; videoBytes: number;
+  preset: PresetName; placement: number[]; states: number[]; // what a node replay of the same take must match
+}
 
 export class Playground {
   preset: PresetName | 'off';
@@ -198,6 +201,7 @@ export class Playground {
       this.lastReplay = {
         frames: frames.length, steps: replay.world.steps, knockedDown: replay.world.knockedDown(),
         boxes: replay.world.boxes.length, videoBytes: blob?.size ?? 0,
+        preset, placement: take.placement, states: replay.world.boxStates(),
       };
       panel.setMessage(`replayed ${frames.length} frames: ${this.lastReplay.knockedDown} of ${this.lastReplay.boxes} boxes down`
         + (blob ? '; the video is under “Physics WebM”' : '; this browser cannot encode video (no WebCodecs)'));
