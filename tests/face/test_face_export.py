@@ -98,3 +98,17 @@ def test_landmark_file_for_an_image_the_tracker_misses(tmp_path, photos, capsys)
     write_landmarks(tmp_path / "hidden.json", lm, w, h, image="hidden.png")
     assert main(["face", str(hidden), "-o", str(tmp_path / "x.glb"), "--landmarks", str(tmp_path / "hidden.json")]) == 0
     _clean(validate_gltf(tmp_path / "x.glb"))
+
+
+def test_video_without_a_face_and_max_frames(tmp_path, capsys, face_video):
+    import subprocess
+    blank = tmp_path / "blank.png"
+    cv2.imwrite(str(blank), np.full((120, 160, 3), 255, np.uint8))
+    video = tmp_path / "blank.mp4"
+    subprocess.run(["ffmpeg", "-v", "error", "-y", "-loop", "1", "-i", str(blank), "-t", "0.3", "-r", "30",
+                    "-pix_fmt", "yuv420p", str(video)], check=True, timeout=60)
+    assert main(["face", str(video), "-o", str(tmp_path / "x.glb")]) == 2
+    assert "no face found in any of its 9 frames" in capsys.readouterr().err
+    out = tmp_path / "short.glb"
+    assert main(["face", str(face_video), "-o", str(out), "--max-frames", "5"]) == 0
+    assert "5 frame(s)" in capsys.readouterr().out
