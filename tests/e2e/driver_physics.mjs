@@ -51,8 +51,9 @@ async function run() {
     await page.keyboard.press('m');
     await until(page, () => !window.kinetre.state().users.some((u) => u.possessing));
     await page.waitForTimeout(500);
+    const built = (await physics(page)).resets;
     await page.keyboard.press('x'); // the tower beside the cow at rest
-    await until(page, () => { const p = window.kinetre.state().physics; return p.steps > 0 && p.steps < 30; });
+    await until(page, (n) => window.kinetre.state().physics.resets > n, built);
     const start = await physics(page);
     result.start = { spheres: start.spheres, radius: start.radius, boxes: start.boxes };
     log('tower built', { spheres: start.spheres });
@@ -69,20 +70,21 @@ async function run() {
     await shot(page, 'physics-knocked-down.png');
 
     await page.keyboard.press('x');
-    const reset = await until(page, () => { const p = window.kinetre.state().physics; return p.steps < 30 && p.boxes.length ? p : null; });
+    const reset = await until(page, (n) => { const p = window.kinetre.state().physics; return p.resets > n ? p : null; }, hit.resets);
     result.resetByKey = { knockedDown: reset.knockedDown, boxes: reset.boxes, steps: reset.steps };
     log('reset by key');
 
     await dragRight(page); // through the rebuilt tower, then say "reset"
     await until(page, () => window.kinetre.state().physics.knockedDown >= 5);
-    const before = (await physics(page)).knockedDown;
+    const { knockedDown: before, resets } = await physics(page);
     await page.keyboard.press('v');
     const voice = await until(page, () => {
       const s = window.kinetre.state();
       return s.voice && s.voice.command && s.voice.command.verb === 'reset' ? { voice: s.voice, physics: s.physics } : null;
     }, null, 90000);
     await page.keyboard.press('v');
-    result.resetByVoice = { heard: voice.voice.command.text, before, knockedDown: voice.physics.knockedDown, steps: voice.physics.steps };
+    result.resetByVoice = { heard: voice.voice.command.text, before, knockedDown: voice.physics.knockedDown,
+      rebuilt: voice.physics.resets - resets };
     log('reset by voice');
 
     await page.selectOption('#physics-preset', 'dodgeball');

@@ -55,6 +55,7 @@ def test_boxes_fall_reset_dodgeball_and_replay_to_video(reset_wav, tmp_path):
     assert r["resetByKey"]["knockedDown"] == 0
     voice = r["resetByVoice"]
     assert voice["heard"] == "reset" and voice["before"] >= 5 and voice["knockedDown"] == 0
+    assert voice["rebuilt"] >= 1  # the voice command rebuilt the world
     assert r["dodgeball"]["balls"] >= 3 and r["dodgeball"]["boxes"] == 0
 
     replay = r["replay"]

@@ -82,3 +82,15 @@ def test_a_mesh_at_rest_knocks_nothing_down(take, tmp_path):
     (still / "mesh.json").write_text((folder / "mesh.json").read_text())
     r = replay(still, script, runs=1)["runs"][0]
     assert r["boxes"] == 20 and r["knockedDown"] == 0  # the tower stands beside the mesh, untouched
+
+
+def test_a_truncated_take_names_the_file(take, tmp_path):
+    folder, *_ = take
+    data = (folder / "take.transforms").read_bytes()
+    bad = tmp_path / "cut.transforms"
+    bad.write_bytes(data[: len(data) // 2 + 7])
+    with pytest.raises(kinetre.BadMotionError, match="cut.transforms"):
+        read_take_transforms(bad)
+    bad.write_bytes(b"KTX2" + data[4:])
+    with pytest.raises(kinetre.BadMotionError, match="frame 0 is not a transform block"):
+        read_take_transforms(bad)

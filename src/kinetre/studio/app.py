@@ -78,12 +78,14 @@ def prepare_mesh(path: str, nodes: int = NODES, progress=lambda stage, fraction:
     mesh = standing_mesh(load_mesh(path))
     progress("building graph", 0.3)
     graph = build_graph(mesh, nodes=nodes, seed=0)
+    progress("packing physics spheres", 0.9)
+    studio_packing(mesh)  # cached: the payload is then ready without blocking the server's event loop
     progress("ready", 1.0)
     return mesh, graph
 
 
 def mesh_payload(mesh: Mesh, graph, mesh_id: int, name: str) -> dict:
-    """What the page needs to build a SkinnedMesh: little-endian arrays as base64."""
+    """What the page needs to build a SkinnedMesh and its physics spheres: little-endian arrays as base64."""
     def b64(a, dtype):
         return base64.b64encode(np.ascontiguousarray(a, dtype=dtype).tobytes()).decode()
     return {"id": mesh_id, "name": name, "vertexCount": int(len(mesh.vertices)),

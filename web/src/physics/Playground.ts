@@ -28,6 +28,7 @@ export class Playground {
   proxies: SphereProxies | null = null;
   replaying = false;
   lastReplay: ReplayReport | null = null;
+  resets = 0; // worlds built so far (tests wait on it)
   private R: Rapier | null = null;
   private rows: Float32Array | null = null;
   private centres = new Float32Array(0);
@@ -127,6 +128,7 @@ export class Playground {
         preset: this.preset, centres: this.proxies.centres(this.rows, placement, this.centres),
         radius: this.proxies.worldRadius(placement),
       });
+      this.resets++;
     }
     this.view.build(this.world);
   }
@@ -223,6 +225,7 @@ export class Playground {
     const w = this.world;
     return {
       preset: this.preset,
+      resets: this.resets,
       spheres: this.proxies?.count ?? 0,
       radius: this.proxies?.radius ?? 0,
       showSpheres: this.view.showSpheres,
