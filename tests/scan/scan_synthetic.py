@@ -1,10 +1,17 @@
-"""Synthetic RGB-D ground truth: a known mesh on a plane, rendered by Open3D's RaycastingScene with Kinect noise.
+"""Synthetic RGB-D ground truth: known meshes on a floor, rendered by Open3D's RaycastingScene with Kinect noise.
 
-World frame: +Y up, the ground plane's top at y = 0, the object standing on it around the origin. Camera poses are
+World frame: +Y up, the floor's top at y = 0, the object standing on it around the origin. Camera poses are
 camera-to-world with OpenCV axes (x right, y down, z forward).
+
+Scenes: Spot the cow on a slab (`spot_on_plane`), and composite objects of thin and thick parts (`OBJECTS`:
+a desk lamp, a chair, a stick figure) on a textured 2 x 2 m floor beside a 10 cm cube (`object_scene`), for
+full 360-degree orbits (`full_orbit`). As a script it writes such an orbit as a Redwood folder:
+
+    python tests/scan/scan_synthetic.py lamp /tmp/lamp --frames 40 --size 640x480
 """
 from __future__ import annotations
 
+import argparse
 import json
 from dataclasses import dataclass
 from pathlib import Path
@@ -21,12 +28,19 @@ REDWOOD = DATA / "rgbd" / "redwood_livingroom"
 
 @dataclass(frozen=True)
 class Scene:
-    """object_vertices/faces : the true object surface; others : everything else in the scene."""
+    """object_vertices/faces : the true object surface; others : everything else in the scene.
+
+    floor : index in the others of the floor (or None); distractor : index of the object we must not keep
+    tile : edge (metres) of the random grey tiles printed on everything but the object (0 = smooth only)
+    """
 
     object_vertices: np.ndarray
     object_faces: np.ndarray
     other_vertices: list
     other_faces: list
+    floor: int | None = 0
+    distractor: int | None = None
+    tile: float = 0.0
 
 
 def _clutter() -> tuple[list, list]:
@@ -60,6 +74,71 @@ def empty_plane(plane_size: float = 1.2, clutter: bool = False) -> Scene:
                  [np.asarray(slab.faces)] + faces)
 
 
+def _cylinder(radius: float, start, end, sections: int = 24) -> trimesh.Trimesh:
+    return trimesh.creation.cylinder(radius=radius, segment=np.array([start, end], float), sections=sections)
+
+
+def _sphere(radius: float, centre) -> trimesh.Trimesh:
+    sphere = trimesh.creation.icosphere(subdivisions=3, radius=radius)
+    sphere.apply_translation(centre)
+    return sphere
+
+
+def _box(size, centre) -> trimesh.Trimesh:
+    box = trimesh.creation.box(size)
+    box.apply_translation(centre)
+    return box
+
+
+def lamp() -> list[trimesh.Trimesh]:
+    """The desk lamp of issue 10: 33 x 56 x 20 cm. Base disc r 10 cm, arms r 1.2 and 1 cm, two joint spheres,
+    and a cone shade hanging from the upper joint (the arm reaches it from above, where the cameras see it)."""
+    shade = trimesh.creation.cone(radius=0.075, height=0.12, sections=48)  # apex at +z
+    axis = np.array([0.6, -1.0, 0.0]) / np.linalg.norm([0.6, -1.0, 0.0])  # base to apex goes against this
+    shade.apply_translation((0.0, 0.0, -0.12))  # apex at the origin
+    shade.apply_transform(trimesh.geometry.align_vectors([0.0, 0.0, -1.0], axis))
+    shade.apply_translation((0.11, 0.54, 0.0))
+    return [_cylinder(0.10, (0, 0, 0), (0, 0.025, 0), 64), _cylinder(0.012, (0.0, 0.02, 0.0), (-0.03, 0.30, 0.0)),
+            _sphere(0.018, (-0.03, 0.30, 0.0)), _cylinder(0.010, (-0.03, 0.30, 0.0), (0.11, 0.54, 0.0)),
+            _sphere(0.02, (0.11, 0.54, 0.0)), shade]
+
+
+def chair() -> list[trimesh.Trimesh]:
+    """A 40 x 80 x 40 cm chair: a 3 cm seat and a backrest rail on thin legs and posts (r 1 and 1.2 cm)."""
+    parts = [_box((0.40, 0.03, 0.40), (0.0, 0.445, 0.0)), _box((0.40, 0.08, 0.03), (0.0, 0.76, -0.185))]
+    for x in (-0.18, 0.18):
+        for z in (-0.18, 0.18):
+            parts.append(_cylinder(0.012, (x, 0.0, z), (x, 0.43, z)))
+        parts.append(_cylinder(0.010, (x, 0.46, -0.185), (x, 0.72, -0.185)))
+    return parts
+
+
+def figure() -> list[trimesh.Trimesh]:
+    """A 60 cm stick figure, arms out: box torso, sphere head, thin limbs (r 1-1.5 cm) on two feet."""
+    parts = [_box((0.14, 0.20, 0.08), (0.0, 0.38, 0.0)), _sphere(0.06, (0.0, 0.54, 0.0)),
+             _cylinder(0.010, (0.06, 0.45, 0.0), (0.30, 0.52, 0.0)), _cylinder(0.010, (-0.06, 0.45, 0.0),
+                                                                              (-0.28, 0.36, 0.06))]
+    for x in (-0.045, 0.045):
+        parts += [_cylinder(0.015, (x, 0.02, 0.0), (x, 0.29, 0.0)), _box((0.06, 0.025, 0.11), (x, 0.0125, 0.02))]
+    return parts
+
+
+OBJECTS = {"lamp": lamp, "chair": chair, "figure": figure}
+
+
+def object_scene(parts: list[trimesh.Trimesh], floor_size: float = 2.0, distractor=(-0.5, 0.0, 0.1),
+                 cube: float = 0.10) -> Scene:
+    """The parts (overlapping primitives, metres, standing on y = 0) on a floor slab, with a cube beside them.
+
+    The cube sits `distractor` (its footprint centre) from the object: the scan must not keep it.
+    """
+    merged = trimesh.util.concatenate(parts)
+    floor = _box((floor_size, 0.04, floor_size), (0.0, -0.02, 0.0))
+    box = _box((cube, cube, cube), (distractor[0], cube / 2, distractor[2]))
+    return Scene(np.asarray(merged.vertices, float), np.asarray(merged.faces), [np.asarray(floor.vertices),
+                 np.asarray(box.vertices)], [np.asarray(floor.faces), np.asarray(box.faces)], 0, 1, 0.04)
+
+
 def look_at(eye, target, up=(0.0, 1.0, 0.0)) -> np.ndarray:
     """(4, 4) camera-to-world pose of an OpenCV camera at `eye` looking at `target`."""
     eye, target, up = (np.asarray(a, float) for a in (eye, target, up))
@@ -81,11 +160,28 @@ def orbit(frames: int, radius: float = 0.9, height: float = 0.55, arc_degrees: f
     return np.array([look_at((radius * np.sin(a), height, radius * np.cos(a)), target) for a in angles])
 
 
-def _texture(points: np.ndarray, is_object: np.ndarray) -> np.ndarray:
+def full_orbit(frames: int, radius: float = 1.1, height: float = 0.65, target=(0.05, 0.25, 0.0),
+               wobble: float = 0.05) -> np.ndarray:
+    """(frames, 4, 4) poses on a closed 360-degree loop (no repeated end frame) looking at `target`.
+
+    A hand-held sweep is not a perfect circle: the radius and height wander by +-`wobble` metres.
+    """
+    angles = np.linspace(0.0, 2.0 * np.pi, frames, endpoint=False)
+    r = radius + wobble * np.sin(3.0 * angles)
+    h = height + wobble * np.cos(2.0 * angles)
+    return np.array([look_at((x * np.sin(a), y, x * np.cos(a)), target) for a, x, y in zip(angles, r, h)])
+
+
+def _texture(points: np.ndarray, is_object: np.ndarray, tile: float = 0.0) -> np.ndarray:
     """Procedural colour (N, 3) in [0, 1] so photometric odometry has something to lock on to."""
     s = np.sin(23.0 * points[:, 0]) * np.sin(19.0 * points[:, 2]) + 0.5 * np.sin(31.0 * points[:, 1])
     base = np.where(is_object[:, None], [0.85, 0.55, 0.35], [0.35, 0.55, 0.8])
-    return np.clip(base * (0.65 + 0.3 * s[:, None]), 0.0, 1.0)
+    shade = 0.65 + 0.3 * s
+    if tile > 0:  # a random grey per tile (a hash of the tile's indices): sharp edges everywhere on the floor
+        cell = np.floor(points / tile)
+        noise = np.modf(np.abs(np.sin(cell @ [12.9898, 4.1414, 78.233]) * 43758.5453))[0]
+        shade = np.where(is_object, shade, 0.35 + 0.6 * noise + 0.1 * s)
+    return np.clip(base * shade[:, None], 0.0, 1.0)
 
 
 def render(scene: Scene, poses: np.ndarray, k: np.ndarray, width: int, height: int, noise: bool = True,
@@ -124,7 +220,7 @@ def render(scene: Scene, poses: np.ndarray, k: np.ndarray, width: int, height: i
         normals = hit["primitive_normals"].numpy()
         shade = np.abs(np.einsum("hwc,hwc->hw", normals, r[..., 3:] / np.linalg.norm(r[..., 3:], axis=-1,
                                                                                       keepdims=True)))
-        color = _texture(points.reshape(-1, 3), mask.reshape(-1)).reshape(height, width, 3)
+        color = _texture(points.reshape(-1, 3), mask.reshape(-1), scene.tile).reshape(height, width, 3)
         color = np.where(ok[..., None], color * (0.4 + 0.6 * shade[..., None]), 0.0)
         colors.append(np.round(color * 255).astype(np.uint8))
         depths.append(depth.astype(np.float32))
@@ -165,3 +261,64 @@ def to_world(vertices: np.ndarray, transform: np.ndarray, first_pose: np.ndarray
     inverse = np.linalg.inv(transform)
     camera = vertices @ inverse[:3, :3].T + inverse[:3, 3]
     return camera @ first_pose[:3, :3].T + first_pose[:3, 3]
+
+
+def seen_points(poses: np.ndarray, depths, masks, k: np.ndarray, stride: int = 1) -> np.ndarray:
+    """(N, 3) world points of the masked pixels of (exact) depth images: the part of a surface the camera saw."""
+    seen = []
+    for pose, depth, mask in zip(poses, depths, masks):
+        v, u = np.nonzero(mask)
+        z = depth[v, u]
+        points = np.stack([(u - k[0, 2]) * z / k[0, 0], (v - k[1, 2]) * z / k[1, 1], z], 1)
+        seen.append(points @ pose[:3, :3].T + pose[:3, 3])
+    return np.concatenate(seen)[::stride]
+
+
+@dataclass(frozen=True)
+class Orbit:
+    """A rendered sequence with its ground truth: noisy colour + depth, exact depth, object masks, poses."""
+
+    scene: Scene
+    poses: np.ndarray
+    k: np.ndarray
+    width: int
+    height: int
+    colors: list
+    depths: list
+    exact: list
+    masks: list
+
+    def write(self, folder: Path) -> Path:
+        """The noisy frames as a Redwood folder with intrinsics.json."""
+        return write_redwood(Path(folder), self.colors, self.depths, self.k, self.width, self.height)
+
+
+def render_orbit(name: str, frames: int = 40, width: int = 640, height: int = 480, seed: int = 0,
+                 **orbit_options) -> Orbit:
+    """OBJECTS[name] on the textured floor beside the cube, seen from a full orbit (`full_orbit` options)."""
+    scene = object_scene(OBJECTS[name]())
+    poses = full_orbit(frames, **orbit_options)
+    k = camera_matrix(width, height)
+    colors, depths, masks = render(scene, poses, k, width, height, noise=True, seed=seed)
+    _, exact, _ = render(scene, poses, k, width, height, noise=False)
+    return Orbit(scene, poses, k, width, height, colors, depths, exact, masks)
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description="Write a synthetic 360-degree RGB-D orbit as a Redwood folder "
+                                                 "(color/, depth/ in mm, intrinsics.json, poses.npy ground truth)")
+    parser.add_argument("object", choices=sorted(OBJECTS))
+    parser.add_argument("folder", type=Path)
+    parser.add_argument("--frames", type=int, default=40)
+    parser.add_argument("--size", default="640x480", help="WIDTHxHEIGHT (default 640x480)")
+    parser.add_argument("--seed", type=int, default=0)
+    args = parser.parse_args()
+    width, height = (int(n) for n in args.size.lower().split("x"))
+    orbit = render_orbit(args.object, args.frames, width, height, args.seed)
+    orbit.write(args.folder)
+    np.save(args.folder / "poses.npy", orbit.poses)
+    print(f"{args.folder}: {args.frames} frames of the {args.object}, {width}x{height}")
+
+
+if __name__ == "__main__":
+    main()

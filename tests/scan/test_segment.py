@@ -7,9 +7,12 @@ import pytest
 from kinetre.errors import BadScanError
 from kinetre.scan.frames import Intrinsics
 from kinetre.scan.fuse import Voxels
-from kinetre.scan.segment import (Plane, changed_voxels, dominant_plane, largest_voxel_component, remove_plane,
+from kinetre.scan.segment import (Plane, changed_voxels, dominant_plane, focus_point, group_components,
+                                  largest_voxel_component, remove_floaters, remove_plane, select_object,
                                   seen_free)
 from kinetre.scan.surface import ScanMesh
+
+import scan_synthetic as synthetic
 
 
 def test_dominant_plane_among_clutter_faces_the_camera():
@@ -68,3 +71,37 @@ def test_seen_free_uses_depth_frames():
     points = np.array([[0.0, 0.0, 1.0], [0.0, 0.0, 1.99], [0.0, 0.0, 3.0], [5.0, 0.0, 1.0]])
     free = seen_free(points, [(depth, np.eye(4), camera)], margin=0.02)
     assert free.tolist() == [True, False, False, False]
+
+
+def _quad(x0, length=0.3, y=0.1):
+    """A 1 cm wide strip from x0 to x0 + length at height y: two faces."""
+    v = np.array([[x0, y, 0], [x0 + length, y, 0], [x0 + length, y, 0.01], [x0, y, 0.01]], float)
+    return v, np.array([[0, 1, 2], [0, 2, 3]])
+
+
+def _mesh_of(*parts):
+    vertices, faces, offset = [], [], 0
+    for v, f in parts:
+        vertices.append(v)
+        faces.append(f + offset)
+        offset += len(v)
+    v = np.concatenate(vertices)
+    return ScanMesh(v, np.concatenate(faces), np.zeros((len(v), 3), np.float32))
+
+
+def test_pieces_of_a_broken_thin_part_are_one_object_and_the_focus_picks_it():
+    # an arm broken by a 1 cm gap (within the join distance), a big slab 0.5 m away, a speck next to the arm
+    arm = _mesh_of(_quad(0.0), _quad(0.31), _quad(0.62, 0.002))
+    groups = group_components(arm, join=0.012)
+    assert len(np.unique(groups)) == 1
+    assert len(np.unique(group_components(arm, join=0.004))) == 3
+    slab = _mesh_of(_quad(0.0), _quad(0.31), *[_quad(1.2 + 0.01 * i, 0.5) for i in range(20)])
+    poses = [synthetic.look_at((2 * np.sin(a), 1.0, 2 * np.cos(a)), (0.3, 0.1, 0.0)) for a in np.linspace(0, 6, 8)]
+    focus = focus_point(np.array(poses))
+    np.testing.assert_allclose(focus, [0.3, 0.1, 0.0], atol=1e-6)
+    choice = select_object(slab, focus, join=0.012)
+    assert choice.sizes == [40, 4] and choice.kept == 4 and "nearest to the point" in choice.reason
+    assert select_object(slab, None, join=0.012).kept == 40  # no focus: the largest
+    assert focus_point(np.array([poses[0], poses[0]])) is None  # parallel axes fix no point
+    kept, dropped = remove_floaters(arm, 0.02, join=0.012)
+    assert len(kept.faces) == 4 and dropped == [2]  # the 2 mm speck goes, both halves of the arm stay

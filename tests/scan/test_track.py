@@ -36,7 +36,8 @@ def test_tracking_recovers_the_pose_and_rejects_a_foreign_frame(spot_scene):
     result = track_frame(volume, colors[3], depths[3], camera, previous)
     assert result.accepted and result.fitness > 0.8 and result.rmse < 0.01
     assert np.linalg.norm(result.pose[:3, 3] - relative[3][:3, 3]) < 0.005
-    # a guess 2 cm along the view and 2 degrees off, no odometry: ICP against the model converges. (Sideways
+    # a guess 2 cm along the view and 2 degrees off, no previous frame: ICP against the model converges (to
+    # 1.1 cm since the truncation went from 6 to 3 voxels for thin parts, fuse.py; 0.8 cm before). (Sideways
     # along the floor the cow alone constrains ICP weakly; the odometry guess covers that direction.)
     guess = relative[3].copy()
     angle = np.radians(2.0)
@@ -44,7 +45,7 @@ def test_tracking_recovers_the_pose_and_rejects_a_foreign_frame(spot_scene):
                                               [-np.sin(angle), 0, np.cos(angle)]])
     guess[:3, 3] += 0.02 * guess[:3, 2]
     result = track_frame(volume, colors[3], depths[3], camera, None, guesses=(guess,))
-    assert result.accepted and np.linalg.norm(result.pose[:3, 3] - relative[3][:3, 3]) < 0.01
+    assert result.accepted and np.linalg.norm(result.pose[:3, 3] - relative[3][:3, 3]) < 0.012
     # a frame of a flat wall 0.5 m away does not fit the model: lost, with the reason
     wall = np.full_like(depths[3], 0.5)
     lost = track_frame(volume, colors[3], wall, camera, previous)

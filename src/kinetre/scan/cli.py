@@ -38,7 +38,7 @@ def add_scan_parser(subparsers) -> argparse.ArgumentParser:
 
 
 def run_scan(args: argparse.Namespace) -> int:
-    """Handler of `kinetre scan`: prints the summary line and returns the exit code."""
+    """Handler of `kinetre scan`: prints the report and the summary line; returns the exit code."""
     from .pipeline import scan
     try:
         result = scan(args.frames, args.output, segment=args.segment, before=args.before, voxel=args.voxel,
@@ -48,5 +48,7 @@ def run_scan(args: argparse.Namespace) -> int:
     except KinetreError as exc:
         print(f"kinetre scan: {exc}", file=sys.stderr)
         return 2
+    for line in result.report:  # where the surface went: frames, fusion, components, what was kept and why
+        print(line)
     print(result.summary())
     return 0

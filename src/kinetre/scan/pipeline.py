@@ -19,13 +19,17 @@ import numpy as np
 
 from ..errors import BadScanError, ExportError
 from .frames import Intrinsics, RGBDSequence, open_sequence, read_frame
+from .features import Features, frame_features
 from .fuse import TSDFVolume
-from .segment import changed_voxels, cut_to_voxels, dominant_plane, remove_plane
-from .surface import (CAMERA_TO_Y_UP, MESH_SUFFIXES, ScanMesh, decimate, orient_outward, remove_small_components,
-                      rotation_between, write_mesh)
-from .track import TrackingParams, track_frame
+from .loop import MAX_KEYFRAMES, Edge, information, loop_edges, optimise
+from .segment import (changed_voxels, cut_above_plane, cut_to_voxels, dominant_plane, focus_point,
+                      remove_floaters, select_object)
+from .surface import CAMERA_TO_Y_UP, MESH_SUFFIXES, ScanMesh, decimate, orient_outward, rotation_between, write_mesh
+from .track import TrackingParams, dense_motion, track_frame
 
 SEGMENTS = (None, "plane", "change")
+# pieces closer than this many voxels are one object: a thin part can fuse with a gap of a voxel or two
+JOIN_VOXELS = 2.0
 MAX_VIEWS = 60  # depth frames kept per sweep to tell seen-empty space from unseen space in change detection
 
 
@@ -39,6 +43,8 @@ class ScanResult:
             camera, of the `before` sweep when there is one; rejected frames hold the pose tracking proposed)
     accepted : (N,) bool, the frames that were fused
     transform : (4, 4) float64 from world (camera axes, y down) to the written mesh's frame (+Y up)
+    report : lines for the terminal saying where the surface went: frames used and rejected (why), voxels
+             fused, components found and their sizes, which one was kept and why
     """
 
     mesh_path: Path
@@ -50,6 +56,7 @@ class ScanResult:
     poses: np.ndarray = field(repr=False)
     accepted: np.ndarray = field(repr=False)
     transform: np.ndarray = field(repr=False)
+    report: tuple = ()  # lines saying what was kept and why: frames, fusion, components
 
     def summary(self) -> str:
         """One line for the terminal."""
@@ -63,21 +70,30 @@ class _Fused:
     accepted: list
     first_view: np.ndarray | None  # (N, 3) world points of the first accepted frame
     views: list  # (depth, pose, camera) of up to MAX_VIEWS accepted frames, for change detection
+    rejected: list = field(default_factory=list)  # (frame index, reason)
+    fitness: list = field(default_factory=list)  # agreement of each tracked, accepted frame with the model
+    loops: int = 0  # loop closures that survived the pose-graph optimisation
+    moved: float = 0.0  # largest change of a camera position by the optimisation (metres)
 
 
 def fuse_sequence(sequence: RGBDSequence, volume: TSDFVolume, params: TrackingParams, *,
                   tracking_model: TSDFVolume | None = None, guesses: tuple[np.ndarray, ...] = (),
-                  progress: bool = True, label: str = "scan") -> _Fused:
+                  progress: bool = True, label: str = "scan", close_loops: bool = True) -> _Fused:
     """Track every frame against the model and fuse the accepted ones into `volume`.
 
     The first frame is placed at `guesses[0]` (identity when none) if the model is empty; with
     `tracking_model` (an earlier scan of the same place) the first frame is tracked against that model instead.
+    With `close_loops`, frames that see the same place again are matched (loop.py); if any match holds, the
+    poses are optimised and the volume is fused again from the frames at the optimised poses.
     """
     from tqdm import tqdm
     camera = sequence.intrinsics
     fused = _Fused([], [], None, [])
     keep_every = max(1, int(np.ceil(len(sequence) / MAX_VIEWS)))
-    previous = None
+    key_every = max(1, int(np.ceil(len(sequence) / MAX_KEYFRAMES)))
+    keyframes: dict[int, Features] = {}
+    edges: list[Edge] = []
+    previous, previous_index = None, None
     bar = tqdm(range(len(sequence)), desc=label, unit="frame", disable=not progress, file=sys.stderr,
                leave=False)
     for index in bar:
@@ -90,18 +106,72 @@ def fuse_sequence(sequence: RGBDSequence, volume: TSDFVolume, params: TrackingPa
                                  guesses=guesses if previous is None else ())
             pose, ok = result.pose, result.accepted
             bar.set_postfix_str(f"fitness {result.fitness:.2f}" + ("" if ok else f", rejected ({result.reason})"))
+            if ok:
+                fused.fitness.append(result.fitness)
+            else:
+                fused.rejected.append((index, result.reason))
         fused.poses.append(pose)
         fused.accepted.append(ok)
         if not ok:
             continue  # a lost frame never touches the model
         volume.integrate(color, depth, camera, pose)
-        previous = (color, depth, pose)
+        if previous is not None:
+            edges.append(Edge(previous_index, index, np.linalg.inv(pose) @ previous[2], _support(depth, camera),
+                              False))
+        if close_loops and index % key_every == 0:
+            keyframes[index] = frame_features(color, depth, camera)
+        previous, previous_index = (color, depth, pose), index
         if index % keep_every == 0:
             fused.views.append((depth, pose, camera))
         if fused.first_view is None:
             fused.first_view = _world_points(depth, camera, pose)
     bar.close()
+    if close_loops and len(keyframes) > 3 and tracking_model is None:
+        tracked = {i: fused.poses[i] for i in range(len(fused.poses)) if fused.accepted[i]}
+        loops = loop_edges(tracked, keyframes, _dense_refiner(sequence, params))
+        if loops:
+            _refuse(sequence, volume, fused, optimise(tracked, edges + loops), loops, progress, label)
     return fused
+
+
+def _support(depth: np.ndarray, camera: Intrinsics) -> np.ndarray:
+    """Information matrix of a dense alignment onto this frame: its depth points on a 40-column grid."""
+    return information(_world_points(depth, camera, np.eye(4), stride=max(1, camera.width // 40)))
+
+
+def _dense_refiner(sequence: RGBDSequence, params: TrackingParams):
+    """refine(a, b, guess) for loop_edges: hybrid RGB-D odometry of frame a onto frame b from the guess."""
+    frames: dict[int, tuple] = {}
+
+    def load(index):
+        if index not in frames:
+            if len(frames) > 8:
+                frames.pop(next(iter(frames)))
+            frames[index] = read_frame(sequence, index)
+        return frames[index]
+
+    def refine(a: int, b: int, guess: np.ndarray):
+        (color_a, depth_a), (color_b, depth_b) = load(a), load(b)
+        transform = dense_motion(color_a, depth_a, color_b, depth_b, sequence.intrinsics, guess, params)
+        return None if transform is None else (transform, _support(depth_b, sequence.intrinsics))
+    return refine
+
+
+def _refuse(sequence, volume, fused: _Fused, optimised: dict, loops: list, progress: bool, label: str) -> None:
+    """Fuse the accepted frames again, into a cleared volume, at their optimised poses."""
+    from tqdm import tqdm
+    fused.moved = max(float(np.linalg.norm(optimised[i][:3, 3] - fused.poses[i][:3, 3])) for i in optimised)
+    fused.loops = len(loops)
+    keep_every = max(1, int(np.ceil(len(sequence) / MAX_VIEWS)))
+    volume.clear()
+    fused.views = []
+    for index in tqdm(sorted(optimised), desc=f"{label} (loop closed)", unit="frame", disable=not progress,
+                      file=sys.stderr, leave=False):
+        color, depth = read_frame(sequence, index)
+        fused.poses[index] = optimised[index]
+        volume.integrate(color, depth, sequence.intrinsics, optimised[index])
+        if index % keep_every == 0:
+            fused.views.append((depth, optimised[index], sequence.intrinsics))
 
 
 def _world_points(depth: np.ndarray, camera: Intrinsics, pose: np.ndarray, stride: int = 2) -> np.ndarray:
@@ -173,34 +243,82 @@ def _scan(frames, out_path, *, segment, before, voxel, intrinsics, camera, depth
         main = fuse_sequence(sequence, volume, tracking, progress=progress)
     used += sum(main.accepted)
     rejected += len(main.accepted) - sum(main.accepted)
+    report = _tracking_report(main, len(sequence), "" if before is None else " (main sweep)")
+    if before is not None:
+        report = _tracking_report(pre, len(before_sequence), " (--before sweep)") + report
 
     vertices, faces, colors = volume.triangle_mesh()
-    viewpoints = np.array([p[:3, 3] for p, ok in zip(main.poses, main.accepted) if ok] +
-                          [p[:3, 3] for p in before_poses])
+    voxels = volume.voxels()
+    report.append(f"fusion: {int(np.count_nonzero(voxels.weight > 0))} voxels fused at {voxel * 1000:g} mm "
+                  f"({volume.grid.hashmap().size()} blocks); marching cubes: {len(vertices)} vertices, "
+                  f"{len(faces)} faces")
+    accepted_poses = np.array([p for p, ok in zip(main.poses, main.accepted) if ok])
+    viewpoints = np.array([p[:3, 3] for p in accepted_poses] + [p[:3, 3] for p in before_poses])
     mesh = ScanMesh(vertices, faces, colors)
     transform = CAMERA_TO_Y_UP.copy()
+    join = JOIN_VOXELS * voxel
     if segment == "change":
         change = changed_voxels(before_volume.voxels(), volume.voxels(), pre.views, main.views)
         if not change.object_in_after:
             vertices, faces, colors = before_volume.triangle_mesh()
             mesh = ScanMesh(vertices, faces, colors)
         mesh = cut_to_voxels(mesh, change.keys, voxel)
+        report.append(f"change: {len(change.keys)} voxels changed, the object was "
+                      f"{'added in' if change.object_in_after else 'taken away from'} the main sweep; "
+                      f"{len(mesh.faces)} faces lie there")
     if len(mesh.faces) == 0:
         raise BadScanError(f"{sequence.root}: no surface was reconstructed (check depth scale and depth_max "
                            f"{depth_max} m)")
     if segment == "plane":
         first = next(p for p, ok in zip(main.poses, main.accepted) if ok)
         plane = dominant_plane(main.first_view, first[:3, 3], max(1.5 * voxel, 0.01), seed)
-        mesh = remove_plane(mesh, plane, margin=max(2.0 * voxel, 0.01))
+        before_cut = len(mesh.faces)
+        mesh = cut_above_plane(mesh, plane, margin=max(2.0 * voxel, 0.01))
+        report.append(f"plane: removed {before_cut - len(mesh.faces)} faces on or below the dominant plane of "
+                      f"the first view; {len(mesh.faces)} left above it")
+        choice = select_object(mesh, focus_point(accepted_poses), join)
+        mesh = choice.mesh
+        report.append(_choice_report(choice, join))
         transform = _upright_on_plane(mesh, plane)
-    mesh = remove_small_components(mesh, min_component)
+    mesh, dropped = remove_floaters(mesh, min_component, join)
+    if dropped:
+        report.append(f"floaters: dropped {len(dropped)} pieces (under {min_component:.0%} of the largest, or under "
+                      f"{2 * join * 100:.1f} cm across; faces: {_sizes(dropped)})")
     if target_faces:
         mesh = decimate(mesh, int(target_faces))
     mesh = orient_outward(mesh, viewpoints)
     mesh = mesh.transformed(transform)
+    extent = np.ptp(mesh.vertices, axis=0) * 100
+    report.append(f"kept: {len(mesh.vertices)} vertices, {len(mesh.faces)} faces, "
+                  f"{extent[0]:.0f} x {extent[1]:.0f} x {extent[2]:.0f} cm (x, y up, z)")
     path = write_mesh(mesh, out_path)
     return ScanResult(path, int(used), int(rejected), len(mesh.vertices), len(mesh.faces),
-                      time.perf_counter() - start, np.array(main.poses), np.array(main.accepted, bool), transform)
+                      time.perf_counter() - start, np.array(main.poses), np.array(main.accepted, bool), transform,
+                      tuple(report))
+
+
+def _sizes(sizes: list, shown: int = 6) -> str:
+    return ", ".join(map(str, sizes[:shown])) + (f" and {len(sizes) - shown} more" if len(sizes) > shown else "")
+
+
+def _tracking_report(fused: _Fused, total: int, sweep: str) -> list[str]:
+    lines = [f"frames{sweep}: {sum(fused.accepted)} of {total} used"]
+    if fused.fitness:
+        lines[0] += (f"; agreement with the model {min(fused.fitness):.2f}-{max(fused.fitness):.2f} "
+                     f"(median {np.median(fused.fitness):.2f})")
+    for index, reason in fused.rejected[:10]:
+        lines.append(f"  rejected frame {index}: {reason}")
+    if len(fused.rejected) > 10:
+        lines.append(f"  ... and {len(fused.rejected) - 10} more rejected")
+    if fused.loops:
+        lines.append(f"loop closure: {fused.loops} matches between distant frames; poses adjusted by up to "
+                     f"{fused.moved * 1000:.0f} mm and the frames fused again")
+    return lines
+
+
+def _choice_report(choice, join: float) -> str:
+    return (f"components: {len(choice.sizes)} above the plane (pieces closer than {join * 100:.1f} cm counted "
+            f"as one; faces: {_sizes(choice.sizes)}); kept the one with {choice.kept} faces: {choice.reason}")
 
 
 def _upright_on_plane(mesh: ScanMesh, plane) -> np.ndarray:

@@ -16,7 +16,7 @@ from scipy.sparse.csgraph import connected_components
 
 from ..errors import BadScanError
 from .fuse import Voxels, open3d
-from .surface import ScanMesh, keep_vertices, remove_small_components
+from .surface import ScanMesh, face_components, keep_faces, keep_vertices, remove_small_components
 
 
 @dataclass(frozen=True)
@@ -47,13 +47,17 @@ def dominant_plane(points: np.ndarray, viewpoint: np.ndarray, distance: float, s
     return plane
 
 
-def remove_plane(mesh: ScanMesh, plane: Plane, margin: float) -> ScanMesh:
-    """Drop everything within `margin` metres of the plane or behind it; keep the largest component."""
-    above = plane.distance(mesh.vertices) > margin
-    cut = keep_vertices(mesh, above)
+def cut_above_plane(mesh: ScanMesh, plane: Plane, margin: float) -> ScanMesh:
+    """Drop everything within `margin` metres of the plane or behind it."""
+    cut = keep_vertices(mesh, plane.distance(mesh.vertices) > margin)
     if len(cut.faces) == 0:
         raise BadScanError("plane segmentation: nothing is left above the dominant plane")
-    return remove_small_components(cut, largest_only=True)
+    return cut
+
+
+def remove_plane(mesh: ScanMesh, plane: Plane, margin: float) -> ScanMesh:
+    """Drop everything within `margin` metres of the plane or behind it; keep the largest component."""
+    return remove_small_components(cut_above_plane(mesh, plane, margin), largest_only=True)
 
 
 _NEIGHBOURS = np.array([(i, j, k) for i in (-1, 0, 1) for j in (-1, 0, 1) for k in (-1, 0, 1)
@@ -90,6 +94,120 @@ def largest_voxel_component(keys: np.ndarray) -> np.ndarray:
     graph = coo_matrix((np.ones(len(rows)), (rows, cols)), shape=(len(keys), len(keys)))
     _, labels = connected_components(graph, directed=False)
     return keys[labels == np.argmax(np.bincount(labels))]
+
+
+def group_components(mesh: ScanMesh, join: float) -> np.ndarray:
+    """(F,) group label per face: connected components, merged when they come within `join` metres *(ours)*.
+
+    A thin part fused a little thinner than it is (a 2 cm lamp arm at 6 mm voxels) can break the mesh into
+    pieces a voxel or two apart; they are still one object. Vertices are binned into `join`-sized cells and
+    components sharing a cell or a neighbouring one are merged (so the gap bridged is between join and 2 join).
+    """
+    labels = face_components(mesh.faces, len(mesh.vertices))
+    if len(labels) == 0:
+        return labels
+    vertex_label = np.full(len(mesh.vertices), -1, np.int64)
+    vertex_label[mesh.faces.reshape(-1)] = np.repeat(labels, 3)
+    used = vertex_label >= 0
+    cells = np.floor(mesh.vertices[used] / join).astype(np.int64)
+    pairs = np.unique(np.c_[_codes(cells), vertex_label[used]], axis=0)  # (cell code, component)
+    codes, owners = pairs[:, 0], pairs[:, 1]
+    rows, cols = [owners], [owners]
+    cell_keys = np.unique(cells, axis=0)
+    # every component of a cell links to the cell's first one, and that one to the first of each neighbour
+    # cell: together that connects all components that come close
+    here = np.searchsorted(codes, _codes(cell_keys))
+    for offset in _NEIGHBOURS:
+        there = _codes(cell_keys + offset)
+        b = np.searchsorted(codes, there)
+        found = (b < len(codes)) & (codes[np.clip(b, 0, len(codes) - 1)] == there)
+        rows.append(owners[here[found]])
+        cols.append(owners[b[found]])
+    first = np.searchsorted(codes, codes)
+    rows.append(owners)
+    cols.append(owners[first])
+    rows, cols = np.concatenate(rows), np.concatenate(cols)
+    n = int(labels.max()) + 1
+    _, group = connected_components(coo_matrix((np.ones(len(rows)), (rows, cols)), shape=(n, n)), directed=False)
+    return group[labels]
+
+
+def remove_floaters(mesh: ScanMesh, min_fraction: float, join: float) -> tuple[ScanMesh, list[int]]:
+    """Drop floaters; returns (kept mesh, face counts of what was dropped, largest first).
+
+    Floaters are groups (`group_components`) with fewer faces than min_fraction of the largest group, and
+    specks: components less than 2 `join` across (a few voxels of noise beside a surface, which the grouping
+    would otherwise keep with it). A broken-off piece of a thin part is larger and stays with its object.
+    """
+    if len(mesh.faces) == 0:
+        return mesh, []
+    groups = group_components(mesh, join)
+    counts = np.bincount(groups)
+    small = counts[groups] < max(1.0, min_fraction * counts.max())
+    labels = face_components(mesh.faces, len(mesh.vertices))
+    corners, owner = mesh.vertices[mesh.faces.reshape(-1)], np.repeat(labels, 3)
+    low = np.full((labels.max() + 1, 3), np.inf)
+    high = np.full((labels.max() + 1, 3), -np.inf)
+    np.minimum.at(low, owner, corners)
+    np.maximum.at(high, owner, corners)
+    speck = np.linalg.norm(high - low, axis=1)[labels] < 2.0 * join
+    drop = small | speck
+    dropped = np.bincount(labels[drop], minlength=labels.max() + 1)
+    return keep_faces(mesh, ~drop), sorted(dropped[dropped > 0].tolist(), reverse=True)
+
+
+def focus_point(poses: np.ndarray) -> np.ndarray | None:
+    """(3,) the point closest (least squares) to the optical axes of the (N, 4, 4) camera poses, or None.
+
+    A scan circles what it is about: the cameras keep it in view, so their axes pass near it. None when the
+    axes are (nearly) parallel and fix no point.
+    """
+    if len(poses) < 2:
+        return None
+    a, b = np.zeros((3, 3)), np.zeros(3)
+    for pose in poses:
+        d = pose[:3, 2] / np.linalg.norm(pose[:3, 2])
+        p = np.eye(3) - np.outer(d, d)
+        a += p
+        b += p @ pose[:3, 3]
+    eigen = np.linalg.eigvalsh(a)
+    if eigen[0] < 0.02 * len(poses):  # less than ~8 degrees of spread between the axes
+        return None
+    return np.linalg.solve(a, b)
+
+
+@dataclass(frozen=True)
+class Choice:
+    """The object picked among the groups of a mesh, and why (for the scan report)."""
+
+    mesh: ScanMesh
+    sizes: list  # faces per group, largest first
+    kept: int  # faces of the kept group
+    reason: str
+
+
+def select_object(mesh: ScanMesh, focus: np.ndarray | None, join: float, min_fraction: float = 0.05) -> Choice:
+    """The group (`group_components`) the scan is about: among groups with at least min_fraction of the
+    largest one's faces, the one nearest `focus` (see `focus_point`); the largest when there is no focus."""
+    groups = group_components(mesh, join)
+    counts = np.bincount(groups)
+    order = np.argsort(-counts)
+    sizes = counts[order][counts[order] > 0].tolist()
+    if focus is None or len(sizes) == 1:
+        best = int(order[0])
+        reason = "the largest" if len(sizes) > 1 else "the only one"
+    else:
+        from scipy.spatial import cKDTree
+        candidates = [int(g) for g in order if counts[g] >= min_fraction * counts.max()]
+        distance = {}
+        for g in candidates:
+            points = mesh.vertices[np.unique(mesh.faces[groups == g])]
+            distance[g] = float(cKDTree(points).query(focus)[0])
+        best = min(candidates, key=distance.get)
+        reason = (f"nearest to the point the cameras looked at ({distance[best] * 100:.0f} cm away; "
+                  f"the next is {sorted(distance.values())[1] * 100:.0f} cm away)" if len(candidates) > 1 else
+                  f"the only one with at least {min_fraction:.0%} of the largest one's faces")
+    return Choice(keep_faces(mesh, groups == best), sizes, int(counts[best]), reason)
 
 
 @dataclass(frozen=True)

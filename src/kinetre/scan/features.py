@@ -1,0 +1,126 @@
+"""Wide-baseline motion guess between two RGB-D frames: ORB features, 3D matches, RANSAC rigid fit *(ours)*.
+
+Dense RGB-D odometry and projective ICP only converge within a few degrees of the answer: on a 40-frame
+360-degree orbit (9 degrees and 19 cm between frames) both settled 1.5-8 degrees off and the scan drifted by
+metres. Features matched by descriptor do not care how far the camera moved: ORB keypoints (OpenCV) of both
+colour images are lifted to 3D with their depth, matched (mutual nearest neighbours in Hamming distance), and
+the rigid motion with the most matches within `inlier_distance` is found by RANSAC over 3-point samples
+(Kabsch's least-squares rotation), then refitted on all its inliers. The result only seeds ICP, which has
+the last word (track.py).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .frames import Intrinsics
+
+ORB_FEATURES = 1000
+
+
+@dataclass(frozen=True)
+class FeatureMotion:
+    """transform : (4, 4) maps points of camera `a` into camera `b`; inliers : matches that agree with it.
+
+    target_points : (inliers, 3) the agreeing points in camera `b` (they weigh the motion in a pose graph)
+    """
+
+    transform: np.ndarray
+    inliers: int
+    matches: int
+    target_points: np.ndarray
+
+
+def _cv2():
+    try:
+        import cv2
+    except ImportError:
+        from ..errors import BadScanError
+        raise BadScanError("scanning needs OpenCV: pip install 'kinetre[scan]'") from None
+    return cv2
+
+
+@dataclass(frozen=True)
+class Features:
+    """ORB descriptors (M, 32) uint8 and camera-space points (M, 3) metres of the keypoints that have a depth."""
+
+    descriptors: np.ndarray
+    points: np.ndarray
+
+
+_RECENT: list = []  # (colour array, Features) of the last few frames: each frame is described once
+
+
+def frame_features(color: np.ndarray, depth: np.ndarray, camera: Intrinsics) -> Features:
+    """ORB keypoints of the colour image lifted to 3D with the depth (cached for the same colour array)."""
+    for image, features in _RECENT:
+        if image is color:
+            return features
+    cv2 = _cv2()
+    gray = cv2.cvtColor(np.ascontiguousarray(color), cv2.COLOR_RGB2GRAY)
+    keypoints, descriptors = cv2.ORB_create(nfeatures=ORB_FEATURES).detectAndCompute(gray, None)
+    if descriptors is None or len(keypoints) == 0:
+        features = Features(np.zeros((0, 32), np.uint8), np.zeros((0, 3)))
+    else:
+        uv = np.array([k.pt for k in keypoints])
+        u = np.clip(np.round(uv[:, 0]).astype(np.int64), 0, depth.shape[1] - 1)
+        v = np.clip(np.round(uv[:, 1]).astype(np.int64), 0, depth.shape[0] - 1)
+        z = depth[v, u].astype(np.float64)
+        ok = z > 0
+        points = np.stack([(uv[:, 0] - camera.cx) * z / camera.fx, (uv[:, 1] - camera.cy) * z / camera.fy, z], 1)
+        features = Features(descriptors[ok], points[ok])
+    _RECENT.insert(0, (color, features))
+    del _RECENT[3:]
+    return features
+
+
+def kabsch(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """(..., 4, 4) rigid transforms minimising sum |R a_i + t - b_i|^2 for (..., N, 3) point sets (Kabsch)."""
+    ca, cb = a.mean(axis=-2, keepdims=True), b.mean(axis=-2, keepdims=True)
+    h = np.swapaxes(a - ca, -1, -2) @ (b - cb)
+    u, _, vt = np.linalg.svd(h)
+    d = np.sign(np.linalg.det(np.swapaxes(vt, -1, -2) @ np.swapaxes(u, -1, -2)))
+    fix = np.ones(h.shape[:-1])
+    fix[..., 2] = d
+    rotation = np.swapaxes(vt, -1, -2) @ (fix[..., :, None] * np.swapaxes(u, -1, -2))
+    transform = np.zeros(h.shape[:-2] + (4, 4))
+    transform[..., :3, :3] = rotation
+    transform[..., :3, 3] = cb[..., 0, :] - (rotation @ np.swapaxes(ca, -1, -2))[..., 0]
+    transform[..., 3, 3] = 1.0
+    return transform
+
+
+def feature_motion(color_a: np.ndarray, depth_a: np.ndarray, color_b: np.ndarray, depth_b: np.ndarray,
+                   camera: Intrinsics, **options) -> FeatureMotion | None:
+    """Rigid motion from frame a to frame b (colour (H, W, 3) uint8, depth (H, W) float32 m), or None.
+
+    None when fewer than `min_inliers` matches agree (too little texture, or no overlap). options: `match`'s.
+    """
+    return match(frame_features(color_a, depth_a, camera), frame_features(color_b, depth_b, camera), **options)
+
+
+def match(a: Features, b: Features, inlier_distance: float = 0.02, hypotheses: int = 256, min_inliers: int = 12,
+          seed: int = 0) -> FeatureMotion | None:
+    """Rigid motion taking the points of `a` onto those of `b` by RANSAC over mutual descriptor matches."""
+    cv2 = _cv2()
+    if len(a.descriptors) < min_inliers or len(b.descriptors) < min_inliers:
+        return None
+    pairs = cv2.BFMatcher(cv2.NORM_HAMMING, crossCheck=True).match(a.descriptors, b.descriptors)
+    if len(pairs) < min_inliers:
+        return None
+    pa = a.points[[m.queryIdx for m in pairs]]
+    pb = b.points[[m.trainIdx for m in pairs]]
+    samples = np.random.default_rng(seed).integers(0, len(pa), (hypotheses, 3))
+    candidates = kabsch(pa[samples], pb[samples])  # (K, 4, 4), degenerate samples just score badly
+    moved = np.einsum("kij,nj->kni", candidates[:, :3, :3], pa) + candidates[:, None, :3, 3]
+    inlier = np.linalg.norm(moved - pb[None], axis=2) < inlier_distance
+    keep = inlier[int(np.argmax(inlier.sum(axis=1)))]
+    for _ in range(2):  # refit on the consensus, then re-collect it
+        if np.count_nonzero(keep) < min_inliers:
+            return None
+        transform = kabsch(pa[keep], pb[keep])
+        keep = np.linalg.norm(pa @ transform[:3, :3].T + transform[:3, 3] - pb, axis=1) < inlier_distance
+    if np.count_nonzero(keep) < min_inliers:
+        return None
+    return FeatureMotion(transform, int(np.count_nonzero(keep)), len(pairs), pb[keep])
