@@ -22,7 +22,7 @@ from .frames import Intrinsics, RGBDSequence, open_sequence, read_frame
 from .features import Features, frame_features
 from .fuse import TSDFVolume
 from .loop import MAX_KEYFRAMES, Edge, information, loop_edges, optimise
-from .segment import (changed_voxels, cut_above_plane, cut_to_voxels, dominant_plane, focus_point,
+from .segment import (SPECK_JOINS, changed_voxels, cut_above_plane, cut_to_voxels, dominant_plane, focus_point,
                       remove_floaters, select_object)
 from .surface import CAMERA_TO_Y_UP, MESH_SUFFIXES, ScanMesh, decimate, orient_outward, rotation_between, write_mesh
 from .track import TrackingParams, dense_motion, track_frame
@@ -283,7 +283,7 @@ def _scan(frames, out_path, *, segment, before, voxel, intrinsics, camera, depth
     mesh, dropped = remove_floaters(mesh, min_component, join)
     if dropped:
         report.append(f"floaters: dropped {len(dropped)} pieces (under {min_component:.0%} of the largest, or under "
-                      f"{2 * join * 100:.1f} cm across; faces: {_sizes(dropped)})")
+                      f"{SPECK_JOINS * join * 100:.1f} cm across; faces: {_sizes(dropped)})")
     if target_faces:
         mesh = decimate(mesh, int(target_faces))
     mesh = orient_outward(mesh, viewpoints)
