@@ -39,13 +39,7 @@ def test_chamfer_to_true_object_under_1cm(spot_scene, spot_plane_scan):
     accuracy = synthetic.surface_distance(vertices, scene.object_vertices, scene.object_faces)
     # completeness over the true surface the camera saw (exact depth, object pixels), above the 2 cm band
     # that plane removal cuts away by design
-    seen = []
-    for pose, depth, mask in zip(poses, exact, masks):
-        v, u = np.nonzero(mask)
-        z = depth[v, u]
-        points = np.stack([(u - k[0, 2]) * z / k[0, 0], (v - k[1, 2]) * z / k[1, 1], z], 1)
-        seen.append(points @ pose[:3, :3].T + pose[:3, 3])
-    seen = np.concatenate(seen)[::7]
+    seen = synthetic.seen_points(poses, exact, masks, k, stride=7)
     seen = seen[seen[:, 1] > 0.025]
     completeness = synthetic.surface_distance(seen, vertices, np.asarray(mesh.faces))
     chamfer = 0.5 * (accuracy.mean() + completeness.mean())
