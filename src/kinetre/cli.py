@@ -23,6 +23,7 @@ EPILOG = """examples:
   kinetre info walk.bvh
   kinetre graph spot.obj --nodes 128 -o spot_graph.ply
   kinetre studio spot.obj --port 8000
+  kinetre scene horse.obj --nats nats://HOST:4222 --room stage --token SECRET
   kinetre avatar CesiumMan.glb --motion walk.bvh -o cesium_walk.glb
 """
 

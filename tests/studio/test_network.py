@@ -226,16 +226,21 @@ def test_nats_restart_and_scene_loss(network, walk):
             # 2. a take is recording when the scene process dies
             async with httpx.AsyncClient(base_url=url, params={"token": A}) as http:
                 assert (await http.post("/api/record/start")).status_code == 200
-            await c.wait(lambda c: c.state.get("recording"), 10)
+            await c.wait(lambda c: c.state.get("recording"), 30)
             mark = len(c.blocks)
             sent = set(await stream(c, 1.0, 400))
             network["scene"].kill()
             network["scene"].wait(10)
-            await c.wait(lambda c: c.state.get("scene_lost"), 10)
+            await c.wait(lambda c: c.state.get("scene_lost"), 30)
             recorded_seen = {unpack_transforms(b)[0] for t, b in c.blocks[mark:] if t in sent}
             # 3. a new scene comes back: the page hears it, possesses again, frames flow
             network["scene"] = start_scene(nats.url, tmp)
-            await c.wait(lambda c: not c.state.get("scene_lost"), 30)
+            try:
+                await c.wait(lambda c: not c.state.get("scene_lost"), 30)
+            except TimeoutError:
+                states = [m for m in c.messages if m["type"] == "state"][-6:]
+                raise AssertionError(json.dumps([(s.get("scene_lost"), s.get("bus"), s["users"]) for s in states])
+                                     + (tmp / "scene.log").read_text()[-1500:]) from None
             await possess(c, walk[0])
             return resume_s, recorded_seen
 

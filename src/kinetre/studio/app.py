@@ -120,6 +120,7 @@ class ClientStats:
     transforms_sent: int = 0
     transforms_skipped: int = 0  # scene frames this client never got: replaced by newer ones (latest wins)
     transforms_seq: int = 0
+    sub: object = None  # the connection's Subscription
 
 
 @dataclass
@@ -168,6 +169,8 @@ class Studio:
                 await (self.start_sample() if msg.get("on") else self.stop_sample())
             elif kind == "subscribe":
                 stats.skeletons = bool(msg.get("skeletons"))
+                if stats.skeletons and stats.sub is not None:
+                    stats.sub.add(SKELETONS)  # only now: a watcher that never asks costs nothing per frame
                 window = msg.get("window", 0)
                 if not isinstance(window, int) or not 0 <= window <= 256:
                     raise ProtocolError(f"window must be an integer 0..256, got {window!r}")
@@ -358,7 +361,7 @@ def create_app(mesh_path: str | None = None, nodes: int = NODES, sample_motion: 
         await ws.accept()
         client = f"{prefix}c{next(clients)}"
         studio.stats[client] = stats = ClientStats()
-        sub = hub.subscribe(SKELETONS, urgent=(TRANSFORMS, STATE, f"kinetre.client.{client}"))
+        sub = stats.sub = hub.subscribe(urgent=(TRANSFORMS, STATE, f"kinetre.client.{client}"))
         await ws.send_text(json.dumps({"type": "welcome", "client": client,
                                        "channel": f"kinetre.skeleton.{client}"}))
         await ws.send_text(json.dumps(studio.scene.state()))

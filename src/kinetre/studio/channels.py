@@ -78,11 +78,15 @@ class Subscription:
         self._first: dict[str, Frame] = {}  # subjects matching `urgent`, delivered before the others
         self._latest: dict[str, Frame] = {}  # insertion order = order subjects became pending
         self._wakeup = asyncio.Event()
+        self._is_urgent: dict[str, bool] = {}  # per subject, so matching runs once per subject
         self.skipped = 0  # frames replaced before they were read (how far a slow reader fell behind)
         self.closed = False
 
     def _offer(self, frame: Frame) -> None:
-        slots = self._first if any(subject_matches(p, frame.subject) for p in self.urgent) else self._latest
+        urgent = self._is_urgent.get(frame.subject)
+        if urgent is None:
+            urgent = self._is_urgent[frame.subject] = any(subject_matches(p, frame.subject) for p in self.urgent)
+        slots = self._first if urgent else self._latest
         if frame.subject in slots:
             self.skipped += 1
             # keep the subject's place in line, replace its frame
@@ -114,6 +118,12 @@ class Subscription:
             except asyncio.TimeoutError:
                 return None
         return None
+
+    def add(self, pattern: str) -> None:
+        """Also receive the subjects matching `pattern` from now on."""
+        if pattern not in self.patterns:
+            self.patterns += (pattern,)
+            self._hub._added(self, pattern)
 
     def close(self) -> None:
         self.closed = True
@@ -156,6 +166,9 @@ class Hub:
         self._subs.append(sub)
         self._routes.clear()
         return sub
+
+    def _added(self, sub: Subscription, pattern: str) -> None:
+        self._routes.clear()
 
     def _remove(self, sub: Subscription) -> None:
         if sub in self._subs:

@@ -194,11 +194,14 @@ class NatsChannels:
     def subscribe(self, *patterns: str, urgent: tuple[str, ...] = ()) -> Subscription:
         sub = Subscription(self, patterns + tuple(urgent), tuple(urgent))
         for pattern in sub.patterns:
-            wire = self.wire(pattern)
-            self._local.setdefault(wire, []).append(sub)
-            if wire not in self._subs and self.nc is not None:
-                self._subs[wire] = asyncio.get_running_loop().create_task(self._nats_subscribe(wire))
+            self._added(sub, pattern)
         return sub
+
+    def _added(self, sub: Subscription, pattern: str) -> None:
+        wire = self.wire(pattern)
+        self._local.setdefault(wire, []).append(sub)
+        if wire not in self._subs and self.nc is not None:
+            self._subs[wire] = asyncio.get_running_loop().create_task(self._nats_subscribe(wire))
 
     async def _nats_subscribe(self, wire: str) -> None:
         async def deliver(msg) -> None:

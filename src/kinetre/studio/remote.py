@@ -87,7 +87,9 @@ class SceneMirror:
         if self.latest is None:
             return {"type": "state", "mesh": None, "placement": Placement().as_dict(), "users": [],
                     "recording": False, "solve_ms": None, "error": "", "scene_lost": True}
-        return {**self.latest, "scene_lost": self.lost}
+        c = self.hub.counters
+        return {**self.latest, "scene_lost": self.lost,
+                "bus": {"gaps": c.gaps, "late": c.late, "offline": c.offline, "reconnects": c.reconnects}}
 
     def transforms_block(self) -> bytes | None:
         return self.block

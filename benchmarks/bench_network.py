@@ -1,0 +1,271 @@
+"""The networked studio under load (issue 12), the embedded hub and NATS side by side, plus a 512-node solve.
+
+Load: 20 capture clients sending Kinect-20 frames at 30 Hz (two of them possess the mesh, left and right
+leg), 100 viewers receiving the node transforms, one scene with a 256-node rig; all WebSocket clients
+live in this process (asyncio, one task per client).
+
+    embedded   one studio process: the embedded hub, the scene, its solve worker process
+    nats       nats-server + `kinetre scene` + `kinetre studio --nats --remote-scene` (the gateway)
+
+Prints JSON lines:
+  {"bench": "network_load", "bus": ..., "latency_median_ms", "latency_p99_ms": capture timestamp → viewer
+   receipt of the transforms solved from it, "solve_hz": distinct solved frames per second at a viewer,
+   "dropped_by_policy": {...}, "lost": {...}, "rss_mb": {process: [start, end]}, "http_worst_ms": ...}
+  {"bench": "network_serving_512", ...}  the embedded studio while a 512-node rig solves: /api/state
+   answer times and the solve rate.
+"""
+from __future__ import annotations
+
+import asyncio
+import json
+import os
+import struct
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import httpx
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+DATA = ROOT / ".." / "shared" / "data"
+sys.path.insert(0, str(ROOT / "tests"))
+
+from studio.conftest import start_server  # noqa: E402
+from studio.nats_server import ROOMS, NatsServer  # noqa: E402
+from studio.studio_ws import frame_message  # noqa: E402
+from websockets.asyncio.client import connect  # noqa: E402
+
+from kinetre.motion.bvh import load_bvh  # noqa: E402
+
+CAPTURE, VIEWERS, HZ, NODES = 20, 100, 30.0, 256
+SECONDS = float(os.environ.get("KINETRE_BENCH_NETWORK_SECONDS", 20))
+HEADER = struct.Struct("<4sIIIdd")
+
+
+def walk_frames() -> list:
+    take = load_bvh(DATA / "bvh" / "cmu_12_01_walk.bvh")
+    return [take.frame(i) for i in range(0, len(take), 4)]
+
+
+def rss_mb(pid: int) -> float:
+    """Resident memory of a process and its children (the solve worker), MB."""
+    total, pids = 0.0, [pid]
+    while pids:
+        p = pids.pop()
+        try:
+            for line in Path(f"/proc/{p}/status").read_text().splitlines():
+                if line.startswith("VmRSS:"):
+                    total += int(line.split()[1]) / 1024
+            for task in Path(f"/proc/{p}/task").iterdir():
+                pids += [int(c) for c in (task / "children").read_text().split()]
+        except (FileNotFoundError, ProcessLookupError):
+            pass
+    return round(total, 1)
+
+
+class Viewer:
+    """A page that only watches: records (seq, t_source, received ms) per transform block."""
+
+    def __init__(self, url: str):
+        self.url, self.blocks, self.stats, self.ws = url, [], None, None
+
+    async def run(self, connected: asyncio.Event | None = None):
+        async with connect(self.url, max_size=1 << 22) as ws:
+            self.ws = ws
+            async for data in ws:
+                if isinstance(data, bytes):
+                    _, seq, _, _, t_source, _ = HEADER.unpack_from(data)
+                    self.blocks.append((seq, t_source, time.time() * 1000))
+                elif data.startswith('{"type": "stats"'):
+                    self.stats = json.loads(data)
+
+    async def ask_stats(self, timeout=30.0):
+        self.stats = None
+        await self.ws.send('{"type": "stats"}')
+        deadline = time.monotonic() + timeout
+        while self.stats is None and time.monotonic() < deadline:
+            await asyncio.sleep(0.05)
+        return self.stats
+
+
+class Capture(Viewer):
+    """A page with a camera: frames at 30 Hz on an absolute schedule; the first two possess the mesh."""
+
+    def __init__(self, url, frames, index):
+        super().__init__(url)
+        self.frames, self.index, self.sent, self.stamps, self.seq = frames, index, 0, [], 0
+        self.state = None
+
+    async def run(self, connected=None):
+        async with connect(self.url, max_size=1 << 22) as ws:
+            self.ws = ws
+            async for data in ws:
+                if isinstance(data, str):
+                    if data.startswith('{"type": "stats"'):
+                        self.stats = json.loads(data)
+                    elif data.startswith('{"type": "state"'):
+                        self.state = json.loads(data)
+
+    async def send(self, k):
+        self.seq += 1
+        t = time.time() * 1000
+        await self.ws.send(frame_message(self.seq, self.frames[(k + 7 * self.index) % len(self.frames)], t=t))
+        self.sent += 1
+        if self.index < 2:
+            self.stamps.append(t)
+
+    async def stream(self, until: float):
+        start, k = time.monotonic(), 0
+        while time.monotonic() < until:
+            await self.send(k)
+            k += 1
+            await asyncio.sleep(max(0.0, start + k / HZ - time.monotonic()))
+
+
+async def http_probe(base: str, token: str | None, until: float) -> list[float]:
+    ms = []
+    async with httpx.AsyncClient(base_url=base, params={"token": token} if token else None, timeout=30) as http:
+        while time.monotonic() < until:
+            t = time.perf_counter()
+            assert (await http.get("/api/state")).status_code == 200
+            ms.append(1000 * (time.perf_counter() - t))
+            await asyncio.sleep(0.5)
+    return ms
+
+
+async def wait_possessing(cap: Capture, timeout=60.0):
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        users = (cap.state or {}).get("users", [])
+        mine = [u for u in users if u["possessing"]]
+        if len(mine) >= 2:
+            return
+        await asyncio.sleep(0.1)
+    raise RuntimeError(f"the two capture clients could not possess: {cap.state}")
+
+
+async def load(base: str, token: str | None, frames, pids: dict, captures=CAPTURE, viewers=VIEWERS,
+               seconds=SECONDS) -> dict:
+    ws_url = base.replace("http://", "ws://") + "/ws" + (f"?token={token}" if token else "")
+    caps = [Capture(ws_url, frames, i) for i in range(captures)]
+    views = [Viewer(ws_url) for _ in range(viewers)]
+    loop = asyncio.get_running_loop()
+    readers = [loop.create_task(c.run()) for c in caps + views]
+    while not all(c.ws for c in caps + views):
+        await asyncio.sleep(0.05)
+    # the two possessors: a first frame, fit, possess a leg each
+    for cap in caps[:2]:
+        await cap.send(0)
+    await asyncio.sleep(1.0)
+    await caps[0].ws.send('{"type": "fit"}')
+    await caps[0].ws.send('{"type": "possess", "subset": "left leg"}')
+    await caps[1].ws.send('{"type": "possess", "subset": "right leg"}')
+    await wait_possessing(caps[0])
+    await asyncio.sleep(1.0)
+    rss_start = {name: rss_mb(pid) for name, pid in pids.items()}
+    t0 = time.monotonic()
+    until = t0 + seconds
+    mark = [len(v.blocks) for v in views]
+    probe = loop.create_task(http_probe(base, token, until))
+    await asyncio.gather(*(c.stream(until) for c in caps))
+    http_ms = await probe
+    await asyncio.sleep(2.0)  # drain: everything in flight arrives
+    rss_end = {name: rss_mb(pid) for name, pid in pids.items()}
+    async with httpx.AsyncClient(base_url=base, params={"token": token} if token else None) as http:
+        state = (await http.get("/api/state")).json()
+    cap_stats = await asyncio.gather(*(c.ask_stats() for c in caps))
+    view_stats = await asyncio.gather(*(v.ask_stats() for v in views))
+    for task in readers:
+        task.cancel()
+
+    stamps = set(caps[0].stamps) | set(caps[1].stamps)
+    latency, solved = [], set()
+    for v, m in zip(views, mark):
+        for seq, t_source, got in v.blocks[m:]:
+            if t_source in stamps:
+                latency.append(got - t_source)
+                if v is views[0]:
+                    solved.add(seq)
+    lat = np.asarray(latency if latency else [float("nan")])
+    received = sum(s["received"] for s in cap_stats)
+    sent = sum(c.sent for c in caps)
+    scene_frames = sum(u["frames"] for u in state["users"])
+    merged, late = state["dropped"]["merged"], state["dropped"]["late"]
+    return {
+        "captures": captures, "viewers": viewers, "nodes": state["mesh"]["nodes"], "seconds": seconds,
+        "latency_median_ms": round(float(np.median(lat)), 2), "latency_p99_ms": round(float(np.percentile(lat, 99)), 2),
+        "latency_samples": int(lat.size),
+        "solve_hz": round(len(solved) / seconds, 1), "solve_ms_median": state["solve_ms"],
+        "frames_sent": sent,
+        "dropped_by_policy": {"skeletons_merged_at_scene": merged, "skeletons_late": late,
+                              "transforms_skipped_for_slow_viewers": sum(s["transforms_skipped"] for s in view_stats)},
+        "lost": {"capture_to_server": sent - received,
+                 "server_to_scene": received - scene_frames - merged - late,
+                 # each viewer's first block is the welcome, sent outside the subscription
+                 "server_to_viewers": sum(s["transforms_sent"] for s in view_stats)
+                 - sum(len(v.blocks) - 1 for v in views),
+                 "bus_sequence_gaps": state.get("bus", {}).get("gaps", 0)},
+        "rss_mb": {name: [rss_start[name], rss_end[name]] for name in pids},
+        "http_median_ms": round(float(np.median(http_ms)), 1), "http_worst_ms": round(max(http_ms), 1),
+    }
+
+
+def run_embedded(frames) -> dict:
+    proc, url = start_server(nodes=NODES)
+    try:
+        return {"bench": "network_load", "bus": "embedded",
+                **asyncio.run(load(url, None, frames, {"studio": proc.pid}))}
+    finally:
+        proc.terminate()
+        proc.wait(10)
+
+
+def run_nats(frames) -> dict:
+    tmp = Path(tempfile.mkdtemp(prefix="kinetre-bench-net-"))
+    with NatsServer() as nats:
+        log = open(tmp / "scene.log", "ab")
+        scene = subprocess.Popen([sys.executable, "-m", "kinetre.cli", "scene", "--nats", nats.url, "--room", "a",
+                                  "--token", ROOMS["a"], "--nodes", str(NODES)],
+                                 stdout=log, stderr=subprocess.STDOUT, env=dict(os.environ, PYTHONUNBUFFERED="1"))
+        try:
+            deadline = time.monotonic() + 120
+            while "Kinetre scene" not in (tmp / "scene.log").read_text():
+                if scene.poll() is not None or time.monotonic() > deadline:
+                    raise RuntimeError((tmp / "scene.log").read_text()[-2000:])
+                time.sleep(0.2)
+            proc, url = start_server(nats=nats.url, room="a", token=ROOMS["a"], remote_scene=True)
+            try:
+                pids = {"studio": proc.pid, "scene": scene.pid, "nats-server": nats.proc.pid}
+                return {"bench": "network_load", "bus": "nats", **asyncio.run(load(url, ROOMS["a"], frames, pids))}
+            finally:
+                proc.terminate()
+                proc.wait(10)
+        finally:
+            scene.terminate()
+            scene.wait(10)
+
+
+def run_serving_512(frames) -> dict:
+    """The embedded studio while a 512-node rig solves: does it keep answering?"""
+    proc, url = start_server(nodes=512)
+    try:
+        result = asyncio.run(load(url, None, frames, {"studio": proc.pid}, captures=2, viewers=20, seconds=10))
+    finally:
+        proc.terminate()
+        proc.wait(10)
+    keep = ("nodes", "solve_hz", "solve_ms_median", "latency_median_ms", "latency_p99_ms", "http_median_ms",
+            "http_worst_ms")
+    return {"bench": "network_serving_512", "captures": 2, "viewers": 20, **{k: result[k] for k in keep}}
+
+
+def main() -> None:
+    frames = walk_frames()
+    for run in (run_embedded, run_nats, run_serving_512):
+        print(json.dumps(run(frames)), flush=True)
+
+
+if __name__ == "__main__":
+    main()
