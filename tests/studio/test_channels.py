@@ -81,3 +81,22 @@ def test_urgent_subjects_jump_the_line():
     order = asyncio.run(run())
     assert order[0] == "kinetre.transforms"
     assert order[1:] == [f"kinetre.skeleton.c{i}" for i in range(5)]
+
+
+def test_replies_are_queued_while_live_data_is_latest_wins():
+    """Every error message reaches its page (issue 12 found them merged under load); frames still merge."""
+    async def run():
+        hub = Hub()
+        sub = hub.subscribe("kinetre.skeleton.*", urgent=("kinetre.client.c1",))
+        for i in range(3):
+            hub.publish(Frame("kinetre.skeleton.c2", i, 0.0, b""))
+            hub.publish(Frame("kinetre.client.c1", 0, 0.0, f"error {i}".encode()))
+        got = []
+        while (frame := sub.poll()) is not None:
+            got.append((frame.subject, frame.seq, frame.data))
+        return got, sub.skipped
+
+    got, skipped = asyncio.run(run())
+    assert got == [("kinetre.client.c1", 0, b"error 0"), ("kinetre.client.c1", 0, b"error 1"),
+                   ("kinetre.client.c1", 0, b"error 2"), ("kinetre.skeleton.c2", 2, b"")]
+    assert skipped == 2

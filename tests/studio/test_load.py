@@ -77,7 +77,11 @@ async def probe(url, stop_at):
     async with httpx.AsyncClient(base_url=url, timeout=30) as http:
         while time.monotonic() < stop_at:
             start = time.monotonic()
-            assert (await http.get("/api/state")).status_code == 200
+            try:
+                response = await http.get("/api/state")
+            except httpx.RemoteProtocolError:  # an idle keep-alive connection closed as we sent: ask again
+                response = await http.get("/api/state")
+            assert response.status_code == 200
             worst = max(worst, time.monotonic() - start)
             await asyncio.sleep(1.0)
     return worst

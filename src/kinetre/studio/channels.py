@@ -6,8 +6,10 @@ transforms on one subject, and any number of viewers subscribe. Subjects follow 
 embedded `Hub` for many machines: a replacement implements the same two methods, `publish` and
 `subscribe`, and hands out objects with the `Subscription` methods.
 
-Delivery is *latest wins per subject*: a subscriber that falls behind sees only the newest frame of
-each subject, never a queue. Memory per subscription is bounded by the number of subjects it matches.
+Delivery is *latest wins per subject* for live data: a subscriber that falls behind sees only the newest
+frame of each subject, never a queue. Memory per subscription is bounded by the number of subjects it
+matches. Replies to one client ("kinetre.client.<c>") and commands ("kinetre.command.<c>") are queued
+instead: every error message must reach its page, every command its scene.
 
     >>> import asyncio
     >>> async def demo():
@@ -75,22 +77,28 @@ class Subscription:
         self.patterns = patterns
         self.urgent = urgent
         self._hub = hub
-        self._first: dict[str, Frame] = {}  # subjects matching `urgent`, delivered before the others
-        self._latest: dict[str, Frame] = {}  # insertion order = order subjects became pending
+        self._first: dict[object, Frame] = {}  # subjects matching `urgent`, delivered before the others
+        self._latest: dict[object, Frame] = {}  # insertion order = order subjects became pending
         self._wakeup = asyncio.Event()
-        self._is_urgent: dict[str, bool] = {}  # per subject, so matching runs once per subject
+        self._is_urgent: dict[str, tuple[bool, bool]] = {}  # subject → (urgent, queued), matched once
+        self._queued = 0
         self.skipped = 0  # frames replaced before they were read (how far a slow reader fell behind)
         self.closed = False
 
     def _offer(self, frame: Frame) -> None:
-        urgent = self._is_urgent.get(frame.subject)
-        if urgent is None:
-            urgent = self._is_urgent[frame.subject] = any(subject_matches(p, frame.subject) for p in self.urgent)
-        slots = self._first if urgent else self._latest
-        if frame.subject in slots:
-            self.skipped += 1
-            # keep the subject's place in line, replace its frame
-        slots[frame.subject] = frame
+        mode = self._is_urgent.get(frame.subject)
+        if mode is None:
+            mode = self._is_urgent[frame.subject] = (any(subject_matches(p, frame.subject) for p in self.urgent),
+                                                     frame.subject.split(".")[1:2] in (["client"], ["command"]))
+        slots = self._first if mode[0] else self._latest
+        if mode[1]:
+            self._queued += 1
+            slots[(frame.subject, self._queued)] = frame  # a key of its own: never replaced
+        else:
+            if frame.subject in slots:
+                self.skipped += 1
+                # keep the subject's place in line, replace its frame
+            slots[frame.subject] = frame
         self._wakeup.set()
 
     def poll(self) -> Frame | None:

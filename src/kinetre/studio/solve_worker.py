@@ -78,7 +78,7 @@ class SolveWorker:
         self._proc = None
         self._conn = None
         self._lock = asyncio.Lock()
-        self.restarts = 0
+        self.restarts = 0  # processes lost and replaced
 
     @property
     def pid(self) -> int | None:
@@ -103,6 +103,7 @@ class SolveWorker:
                 status, value = await asyncio.to_thread(self._conn.recv)
             except (EOFError, OSError, BrokenPipeError):
                 self._proc = None
+                self.restarts += 1  # the next call starts a new process
                 raise SolverLost("the solve process stopped; possess again") from None
         if status == "error":
             raise value
