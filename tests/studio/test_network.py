@@ -36,11 +36,13 @@ A, B = ROOMS["a"], ROOMS["b"]
 def start_scene(url: str, tmp: Path, room: str = "a", token: str = A, timeout: float = 120) -> subprocess.Popen:
     """`kinetre scene` in its own process; returns once its first state is on the bus."""
     env = dict(os.environ, PYTHONUNBUFFERED="1", TMPDIR=str(tmp))
-    log = open(tmp / "scene.log", "ab")
+    path = tmp / "scene.log"
+    before = path.read_text().count("Kinetre scene") if path.exists() else 0  # earlier scenes logged here too
+    log = open(path, "ab")
     proc = subprocess.Popen([sys.executable, "-m", "kinetre.cli", "scene", "--nats", url, "--room", room,
                              "--token", token, "--nodes", str(NODES)], env=env, stdout=log, stderr=subprocess.STDOUT)
     deadline = time.monotonic() + timeout
-    while "Kinetre scene" not in (tmp / "scene.log").read_text():
+    while path.read_text().count("Kinetre scene") <= before:
         if proc.poll() is not None or time.monotonic() > deadline:
             proc.kill()
             raise RuntimeError("scene did not start: " + (tmp / "scene.log").read_text()[-2000:])
@@ -221,7 +223,9 @@ def test_nats_restart_and_scene_loss(network, walk):
             restarted = time.time() * 1000
             sent = set(await stream(c, 3.0, 200))
             after = [arrived for t, arrived in c.arrivals if t in sent]
-            assert after, "no transforms after the NATS server came back"
+            assert after, ("no transforms after the NATS server came back: "
+                           + json.dumps([c.arrivals[-3:], (c.state or {}).get("bus"), (c.state or {}).get("users")])
+                           + (tmp / "scene.log").read_text()[-1500:])
             resume_s = (min(after) - restarted) / 1000
             # 2. a take is recording when the scene process dies
             async with httpx.AsyncClient(base_url=url, params={"token": A}) as http:
@@ -239,7 +243,10 @@ def test_nats_restart_and_scene_loss(network, walk):
                 await c.wait(lambda c: not c.state.get("scene_lost"), 30)
             except TimeoutError:
                 states = [m for m in c.messages if m["type"] == "state"][-6:]
+                async with httpx.AsyncClient(base_url=url, params={"token": A}) as http:
+                    mirror = (await http.get("/api/state")).json()
                 raise AssertionError(json.dumps([(s.get("scene_lost"), s.get("bus"), s["users"]) for s in states])
+                                     + json.dumps([mirror.get("scene_lost"), mirror.get("bus"), mirror.get("users")])
                                      + (tmp / "scene.log").read_text()[-1500:]) from None
             await possess(c, walk[0])
             return resume_s, recorded_seen
