@@ -269,7 +269,12 @@ export class Studio {
         this.panel.setMessage('recording… press Space or Record again to stop');
         return;
       }
-      const [take, webm, avatar] = await Promise.all([this.takes.stop(), this.video.stop(), this.avatars.stopRecording()]);
+      const avatarTake = this.avatars.stopRecording().catch((e: Error) => { this.panel.setMessage(e.message, true); return []; });
+      const [take, webm] = await Promise.all([this.takes.stop(), this.video.stop()]).catch(async (err) => {
+        this.panel.setDownloads(await avatarTake); // the avatar's take stands on its own
+        throw err;
+      });
+      const avatar = await avatarTake;
       if (take.files.transforms && this.state) this.physics.setTake(take.files.transforms, take.fps, this.state.placement.matrix);
       const links = Object.entries(take.files).filter(([kind]) => kind !== 'transforms').map(([kind, href]) => ({
         label: kind === 'stream' ? 'skeleton stream' : kind.toUpperCase(), href,
