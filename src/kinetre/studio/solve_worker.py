@@ -47,9 +47,35 @@ class InlineSolver:
         self.rig = None
 
 
+def warm_up(frames: int = 3) -> None:
+    """Attach and solve a few frames of the shipped sample (Spot, CMU walk) on a small graph.
+
+    The solver's numba kernels compile (or load from the cache) on their first call; doing it here, before
+    the first possession, keeps that pause out of a live take.
+    """
+    from importlib import resources
+
+    from ..graph.build import build_graph
+    from ..mesh.load import load_mesh
+    from ..motion.bvh import load_bvh
+    from ..motion.fit import fit_take
+
+    data = resources.files("kinetre") / "data"
+    mesh = load_mesh(str(data / "spot.obj"))
+    take = load_bvh(str(data / "cmu_12_01_walk.bvh"))
+    place = fit_take(take, mesh)
+    rig = attach(place.graph(build_graph(mesh, nodes=32, seed=0)), place.skeleton(take.frame(0)))
+    for i in range(1, frames + 1):
+        rig.solve(place.skeleton(take.frame(8 * i)))
+
+
 def _serve(conn) -> None:
     """The child: one rig, requests answered in order until the pipe closes."""
     os.environ.setdefault("OMP_NUM_THREADS", "1")
+    try:
+        warm_up()
+    except Exception:  # a warm-up that fails only costs the first real solve its compile time
+        pass
     rig = None
     while True:
         try:
