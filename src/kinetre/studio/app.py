@@ -56,6 +56,7 @@ from .placement import standing_mesh
 from .protocol import ProtocolError, parse_message, parse_skeleton, with_client
 from .scene import SKELETONS, STATE, TRANSFORMS, Scene, check_subset, now_ms, resample
 from .solve_worker import SolveWorker
+from .uploads import read_upload
 
 NODES = 128  # graph size for meshes loaded in the studio (the paper's default)
 TAKE_FPS = 30.0
@@ -421,13 +422,9 @@ def create_app(mesh_path: str | None = None, nodes: int = NODES, sample_motion: 
         return Response(payload, media_type="application/json")
 
     async def mesh_post(request: Request) -> Response:
-        name = request.query_params.get("name", "mesh")
-        data = await request.body()
-        if not data:
-            return JSONResponse({"error": f"{name}: the file is empty"}, 400)
-        if len(data) > MAX_UPLOAD:
-            return JSONResponse({"error": f"{name}: {len(data) >> 20} MB is over the {MAX_UPLOAD >> 20} MB limit"},
-                                413)
+        name, data, refused = await read_upload(request, "mesh", MAX_UPLOAD)
+        if refused is not None:
+            return refused
         scan_options = {}
         if name.lower().endswith(".zip"):  # the "Scan" entry: RGB-D frames, segmented by plane by default
             segment = request.query_params.get("segment", "plane")

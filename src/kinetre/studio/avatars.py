@@ -34,6 +34,7 @@ from ..avatar.bonemap import auto_map, check_humanoid, map_path, parse_map, writ
 from ..avatar.load import EXTENSIONS, load_avatar
 from ..avatar.retarget import plan_retarget, retarget
 from ..errors import BadAvatarError, KinetreError
+from .uploads import read_upload
 
 MAX_AVATAR = 100 * 1024 * 1024
 TAKE_FPS_LIMITS = (1.0, 240.0)
@@ -140,12 +141,9 @@ def avatar_routes(shelf: Shelf) -> list[Route]:
         return shelf.avatars.get(int(request.path_params["avatar_id"]))
 
     async def upload(request: Request) -> Response:
-        name = request.query_params.get("name", "avatar.glb")
-        data = await request.body()
-        if not data:
-            return JSONResponse({"error": f"{name}: the file is empty"}, 400)
-        if len(data) > MAX_AVATAR:
-            return JSONResponse({"error": f"{name}: {len(data) >> 20} MB is over the {MAX_AVATAR >> 20} MB limit"}, 413)
+        name, data, refused = await read_upload(request, "avatar.glb", MAX_AVATAR)
+        if refused is not None:
+            return refused
         status, body = await asyncio.to_thread(shelf.add, name, data)
         return JSONResponse(body, status)
 
