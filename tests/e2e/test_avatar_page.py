@@ -3,12 +3,11 @@ the sample motion, skinned by three.js exactly like our numpy LBS, recorded to a
 bone map edited and saved next to it, then driven by the webcam (a dancer on the fake camera); a fox is refused as an avatar and loaded for possession instead."""
 from __future__ import annotations
 
-import json
-import subprocess
 from pathlib import Path
 
 import httpx
 import numpy as np
+from e2e.node_driver import run_driver
 from studio.conftest import start_server
 
 from export.takes import validate_gltf
@@ -33,10 +32,7 @@ def test_an_avatar_in_the_studio_page(data_dir, tmp_path):
               "video": str(ROOT / ".." / "shared" / "data" / "video" / "pose_1_320x240_30fps.y4m")}
     proc, url = start_server(sample_motion=True)
     try:
-        out = subprocess.run(["node", str(HERE / "driver_avatar.mjs"), json.dumps({**config, "url": url + "/"})],
-                             capture_output=True, text=True, timeout=600, cwd=ROOT)
-        result = json.loads(out.stdout.strip().splitlines()[-1])
-        assert result["ok"], result.get("error", "") + json.dumps(result["steps"])
+        result = run_driver("driver_avatar.mjs", {**config, "url": url + "/"}, 600)
         downloads = dict(result["downloads"])
         files = {k: httpx.get(url + downloads[k], timeout=30).content for k in ("avatar GLB", "avatar BVH")}
         saved_map = httpx.get(url + "/" + result["mapLink"], timeout=30).json()

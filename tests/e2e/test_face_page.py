@@ -7,7 +7,6 @@ tests/e2e/artifacts/ (gitignored); face-live.png shows the textured puppet besid
 from __future__ import annotations
 
 import json
-import subprocess
 from pathlib import Path
 
 import cv2
@@ -16,6 +15,7 @@ import pygltflib
 import pytest
 from export.takes import validate_gltf
 from face.fixtures_face import pan_video
+from e2e.node_driver import run_driver
 from studio.conftest import start_server
 
 from kinetre.cli import main
@@ -34,12 +34,7 @@ PORTRAIT = FACES / "face_frontal_portrait.jpg"
 def drive(url: str, scenario: str, video: Path, timeout: float = 900, **extra) -> dict:
     assert (ROOT / "src" / "kinetre" / "studio" / "static" / "annotate" / "index.html").is_file(), "run `make web`"
     config = {"scenario": scenario, "url": url, "video": str(video), "artifacts": str(ARTIFACTS), **extra}
-    out = subprocess.run(["node", str(HERE / "driver_face.mjs"), json.dumps(config)], capture_output=True,
-                         text=True, timeout=timeout, cwd=ROOT)
-    lines = out.stdout.strip().splitlines()
-    assert lines, f"driver printed nothing: {out.stderr[-2000:]}"
-    result = json.loads(lines[-1])
-    assert result["ok"], result.get("error", "") + json.dumps(result["steps"])[:2000]
+    result = run_driver("driver_face.mjs", config, timeout)
     errors = [s for s in result["steps"] if "error" in s["step"]]
     assert not errors, errors
     return result

@@ -2,9 +2,9 @@
 from __future__ import annotations
 
 import json
-import subprocess
 from pathlib import Path
 
+from e2e.node_driver import run_driver
 from studio.conftest import start_server
 
 HERE = Path(__file__).resolve().parent
@@ -19,13 +19,10 @@ def test_joint_map_upload_shows_and_clears(tmp_path):
     try:
         config = {"url": url, "map": str(ROOT / "examples" / "maps" / "two-people-horse.json"), "bad": str(bad),
                   "artifacts": str(HERE / "artifacts")}
-        out = subprocess.run(["node", str(HERE / "driver_rigs.mjs"), json.dumps(config)], capture_output=True,
-                             text=True, timeout=300, cwd=ROOT)
+        result = run_driver("driver_rigs.mjs", config, 300)
     finally:
         proc.terminate()
         proc.wait(10)
-    result = json.loads(out.stdout.strip().splitlines()[-1])
-    assert result["ok"], result.get("error", "") + out.stderr[-1000:]
     assert result["errors"] == []
     assert "bad.json: sources[0]: unknown key(s) ofset" in result["badMessage"]
     assert result["shown"] == "two-people-horse.json: 2 sources" and result["clearVisible"]

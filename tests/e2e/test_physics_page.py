@@ -11,6 +11,7 @@ import subprocess
 from pathlib import Path
 
 import pytest
+from e2e.node_driver import run_driver
 from studio.conftest import start_server
 from physics.node_replay import bundle, node_replay
 from studio.fixtures_voice import looped_command_wav
@@ -32,15 +33,10 @@ def test_boxes_fall_reset_dodgeball_and_replay_to_video(reset_wav, tmp_path):
         config = {"url": url, "audio": str(reset_wav), "artifacts": str(HERE / "artifacts"),
                   "out": str(tmp_path / "replay.webm"), "takeTransforms": str(tmp_path / "take.transforms"),
                   "takeMesh": str(tmp_path / "mesh.json")}
-        out = subprocess.run(["node", str(HERE / "driver_physics.mjs"), json.dumps(config)], capture_output=True,
-                             text=True, timeout=400, cwd=ROOT)
+        r = run_driver("driver_physics.mjs", config, 400)
     finally:
         proc.terminate()
         proc.wait(10)
-    lines = out.stdout.strip().splitlines()
-    assert lines, out.stderr[-2000:]
-    r = json.loads(lines[-1])
-    assert r["ok"], r.get("error", "") + json.dumps(r["steps"])
 
     start, hit = r["start"], r["hit"]
     assert start["spheres"] > 20 and len(start["boxes"]) == 20

@@ -6,12 +6,11 @@ Needs the built page (`make web`) and node + web/node_modules (`npm ci` in web/)
 """
 from __future__ import annotations
 
-import json
-import subprocess
 from pathlib import Path
 
 import pygltflib
 import pytest
+from e2e.node_driver import run_driver
 from studio.conftest import start_server
 from studio.fixtures_voice import looped_command_wav
 
@@ -25,13 +24,7 @@ def drive(url: str, scenario: str, timeout: float = 600, **extra) -> dict:
     assert (ROOT / "src" / "kinetre" / "studio" / "static" / "index.html").is_file(), "run `make web` first"
     config = {"scenario": scenario, "url": url + "/", "query": "?noshadows", "video": str(VIDEO),
               "artifacts": str(ARTIFACTS), **extra}
-    out = subprocess.run(["node", str(HERE / "driver.mjs"), json.dumps(config)], capture_output=True, text=True,
-                         timeout=timeout, cwd=ROOT)
-    lines = out.stdout.strip().splitlines()
-    assert lines, f"driver printed nothing: {out.stderr[-2000:]}"
-    result = json.loads(lines[-1])
-    assert result["ok"], result.get("error", "") + json.dumps(result["steps"])[:2000]
-    return result
+    return run_driver("driver.mjs", config, timeout)
 
 
 @pytest.fixture(scope="module")
