@@ -73,9 +73,10 @@ try {
   log('map saved');
 
   await page.setInputFiles('#file', config.fox);
-  await waitFor(page, () => /not an upright humanoid/.test(document.querySelector('#message').textContent));
+  // once the fox has loaded as a mesh, the page still says why it is not an avatar
+  await waitFor(page, () => window.kinetre.state().meshName === 'Fox.glb'
+    && /loaded as a mesh instead/.test(document.querySelector('#message').textContent), null, 120000);
   result.foxMessage = await page.textContent('#message');
-  await waitFor(page, () => window.kinetre.state().meshName === 'Fox.glb', null, 120000);
   result.meshAfterFox = await page.evaluate(() => window.kinetre.state().meshName);
 
   // the webcam's skeleton (a dancer on the fake camera) takes over from the sample motion

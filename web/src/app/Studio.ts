@@ -84,7 +84,13 @@ export class Studio {
     this.video = new CanvasRecorder(this.viewport.renderer.domElement);
     this.uploader = new MeshUploader({
       onProgress: (label, f) => this.panel.setProgress(label, f),
-      onDone: () => { this.panel.setProgress(null); this.panel.setMessage('mesh ready: fit it to you and possess it'); },
+      onDone: () => {
+        this.panel.setProgress(null);
+        // a rigged file refused as an avatar keeps its reason on screen: the user asked for an avatar
+        const refusal = this.avatars.lastError;
+        this.panel.setMessage(refusal ? `${refusal} — loaded as a mesh instead: fit it to you and possess it`
+          : 'mesh ready: fit it to you and possess it', refusal !== '');
+      },
       onError: (m) => { this.panel.setProgress(null); this.panel.setMessage(m, true); },
     }, (file) => this.avatars.tryUpload(file));
     this.uploader.bind(root, this.panel.fileInput);

@@ -63,6 +63,7 @@ export class AvatarStage {
   /** True when `file` was taken as an avatar (or its map is being completed); false to load it as a mesh. */
   async tryUpload(file: File): Promise<boolean> {
     const name = file.name.toLowerCase();
+    this.lastError = '';
     if (!AVATAR_EXTENSIONS.some((e) => name.endsWith(e))) return false;
     if (!name.endsWith('.vrm') && !(await hasSkin(file))) return false; // an unrigged glTF: a mesh to possess
     const r = await fetch(`api/avatar?name=${encodeURIComponent(file.name)}`, { method: 'POST', body: file });
