@@ -45,25 +45,65 @@ SECONDS = float(os.environ.get("KINETRE_BENCH_NETWORK_SECONDS", 20))
 HEADER = struct.Struct("<4sIIIdd")
 
 
-def walk_frames() -> list:
+def walk_frames() -> list[tuple[str, str]]:
+    """The CMU walk at 30 Hz as skeleton messages encoded once, split around their "seq" and "t" (the
+    generator fills those in per send, so what is measured is the servers, not JSON encoding here)."""
     take = load_bvh(DATA / "bvh" / "cmu_12_01_walk.bvh")
-    return [take.frame(i) for i in range(0, len(take), 4)]
+    marker = '"seq": 0, "t": 0.0'
+    return [tuple(frame_message(0, take.frame(i), t=0.0).split(marker)) for i in range(0, len(take), 4)]
 
 
-def rss_mb(pid: int) -> float:
-    """Resident memory of a process and its children (the solve worker), MB."""
-    total, pids = 0.0, [pid]
+def tree(pid: int) -> list[int]:
+    """A process and its descendants (the solve worker)."""
+    found, pids = [], [pid]
     while pids:
         p = pids.pop()
+        found.append(p)
         try:
-            for line in Path(f"/proc/{p}/status").read_text().splitlines():
-                if line.startswith("VmRSS:"):
-                    total += int(line.split()[1]) / 1024
             for task in Path(f"/proc/{p}/task").iterdir():
                 pids += [int(c) for c in (task / "children").read_text().split()]
         except (FileNotFoundError, ProcessLookupError):
             pass
+    return found
+
+
+def rss_mb(pid: int) -> float:
+    """Resident memory of a process and its children (the solve worker), MB."""
+    total = 0.0
+    for p in tree(pid):
+        try:
+            for line in Path(f"/proc/{p}/status").read_text().splitlines():
+                if line.startswith("VmRSS:"):
+                    total += int(line.split()[1]) / 1024
+        except (FileNotFoundError, ProcessLookupError):
+            pass
     return round(total, 1)
+
+
+def cpu_seconds(pid: int) -> tuple[float, float]:
+    """(the process's own CPU time, its descendants' CPU time), seconds of user + system, all threads."""
+    own = rest = 0.0
+    for p in tree(pid):
+        try:
+            fields = Path(f"/proc/{p}/stat").read_text().rsplit(")", 1)[1].split()
+        except (FileNotFoundError, ProcessLookupError):
+            continue
+        seconds = (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")  # utime, stime
+        if p == pid:
+            own = seconds
+        else:
+            rest += seconds
+    return own, rest
+
+
+def cpu_use(pids: dict) -> dict:
+    """CPU seconds so far of every named process (and of its children, e.g. the solve worker) and of this one."""
+    use = {"load_generator": time.process_time()}
+    for name, pid in pids.items():
+        use[name], children = cpu_seconds(pid)
+        if children:
+            use[name + "_children"] = children
+    return use
 
 
 class Viewer:
@@ -73,7 +113,7 @@ class Viewer:
         self.url, self.blocks, self.stats, self.ws = url, [], None, None
 
     async def run(self, connected: asyncio.Event | None = None):
-        async with connect(self.url, max_size=1 << 22) as ws:
+        async with connect(self.url, max_size=1 << 22, compression=None) as ws:
             self.ws = ws
             async for data in ws:
                 if isinstance(data, bytes):
@@ -94,13 +134,13 @@ class Viewer:
 class Capture(Viewer):
     """A page with a camera: frames at 30 Hz on an absolute schedule; the first two possess the mesh."""
 
-    def __init__(self, url, frames, index):
+    def __init__(self, url, frames: list[tuple[str, str]], index):
         super().__init__(url)
         self.frames, self.index, self.sent, self.stamps, self.seq = frames, index, 0, [], 0
         self.state = None
 
     async def run(self, connected=None):
-        async with connect(self.url, max_size=1 << 22) as ws:
+        async with connect(self.url, max_size=1 << 22, compression=None) as ws:
             self.ws = ws
             async for data in ws:
                 if isinstance(data, str):
@@ -112,7 +152,8 @@ class Capture(Viewer):
     async def send(self, k):
         self.seq += 1
         t = time.time() * 1000
-        await self.ws.send(frame_message(self.seq, self.frames[(k + 7 * self.index) % len(self.frames)], t=t))
+        head, tail = self.frames[(k + 7 * self.index) % len(self.frames)]
+        await self.ws.send(f'{head}"seq": {self.seq}, "t": {t!r}{tail}')
         self.sent += 1
         if self.index < 2:
             self.stamps.append(t)
@@ -166,12 +207,15 @@ async def load(base: str, token: str | None, frames, pids: dict, captures=CAPTUR
     await wait_possessing(caps[0])
     await asyncio.sleep(1.0)
     rss_start = {name: rss_mb(pid) for name, pid in pids.items()}
+    cpu_start = cpu_use(pids)
     t0 = time.monotonic()
     until = t0 + seconds
     mark = [len(v.blocks) for v in views]
     probe = loop.create_task(http_probe(base, token, until))
     await asyncio.gather(*(c.stream(until) for c in caps))
     http_ms = await probe
+    window = time.monotonic() - t0
+    cpu_end = cpu_use(pids)
     await asyncio.sleep(2.0)  # drain: everything in flight arrives
     rss_end = {name: rss_mb(pid) for name, pid in pids.items()}
     async with httpx.AsyncClient(base_url=base, params={"token": token} if token else None) as http:
@@ -199,25 +243,36 @@ async def load(base: str, token: str | None, frames, pids: dict, captures=CAPTUR
         "latency_median_ms": round(float(np.median(lat)), 2), "latency_p99_ms": round(float(np.percentile(lat, 99)), 2),
         "latency_samples": int(lat.size),
         "solve_hz": round(len(solved) / seconds, 1), "solve_ms_median": state["solve_ms"],
+        "solve_cpu_ms_median": state.get("solve_cpu_ms"),
         "frames_sent": sent,
         "dropped_by_policy": {"skeletons_merged_at_scene": merged, "skeletons_late": late,
                               "transforms_skipped_for_slow_viewers": sum(s["transforms_skipped"] for s in view_stats)},
         "lost": {"capture_to_server": sent - received,
                  "server_to_scene": received - scene_frames - merged - late,
-                 # each viewer's first block is the welcome, sent outside the subscription
-                 "server_to_viewers": sum(s["transforms_sent"] for s in view_stats)
-                 - sum(len(v.blocks) - 1 for v in views),
+                 "server_to_viewers": sum(s["transforms_sent"] for s in view_stats) - sum(len(v.blocks) for v in views),
                  "bus_sequence_gaps": state.get("bus", {}).get("gaps", 0)},
         "rss_mb": {name: [rss_start[name], rss_end[name]] for name in pids},
         "http_median_ms": round(float(np.median(http_ms)), 1), "http_worst_ms": round(max(http_ms), 1),
+        # share of one core over the window (200 = both cores of this machine)
+        "cpu_percent": {name: round(100 * (cpu_end[name] - cpu_start.get(name, 0.0)) / window, 1) for name in cpu_end},
+        "load_average_1min": round(os.getloadavg()[0], 2),
     }
+
+
+def run_loop(coro):
+    """uvloop when installed (as uvicorn uses): the generator's own event-loop cost is part of what it adds."""
+    try:
+        import uvloop
+    except ImportError:
+        return asyncio.run(coro)
+    return uvloop.run(coro)
 
 
 def run_embedded(frames) -> dict:
     proc, url = start_server(nodes=NODES)
     try:
         return {"bench": "network_load", "bus": "embedded",
-                **asyncio.run(load(url, None, frames, {"studio": proc.pid}))}
+                **run_loop(load(url, None, frames, {"studio": proc.pid}))}
     finally:
         proc.terminate()
         proc.wait(10)
@@ -239,7 +294,7 @@ def run_nats(frames) -> dict:
             proc, url = start_server(nats=nats.url, room="a", token=ROOMS["a"], remote_scene=True)
             try:
                 pids = {"studio": proc.pid, "scene": scene.pid, "nats-server": nats.proc.pid}
-                return {"bench": "network_load", "bus": "nats", **asyncio.run(load(url, ROOMS["a"], frames, pids))}
+                return {"bench": "network_load", "bus": "nats", **run_loop(load(url, ROOMS["a"], frames, pids))}
             finally:
                 proc.terminate()
                 proc.wait(10)
@@ -252,18 +307,20 @@ def run_serving_512(frames) -> dict:
     """The embedded studio while a 512-node rig solves: does it keep answering?"""
     proc, url = start_server(nodes=512)
     try:
-        result = asyncio.run(load(url, None, frames, {"studio": proc.pid}, captures=2, viewers=20, seconds=10))
+        result = run_loop(load(url, None, frames, {"studio": proc.pid}, captures=2, viewers=20, seconds=10))
     finally:
         proc.terminate()
         proc.wait(10)
-    keep = ("nodes", "solve_hz", "solve_ms_median", "latency_median_ms", "latency_p99_ms", "http_median_ms",
+    keep = ("nodes", "solve_hz", "solve_ms_median", "solve_cpu_ms_median", "cpu_percent", "latency_median_ms", "latency_p99_ms", "http_median_ms",
             "http_worst_ms")
     return {"bench": "network_serving_512", "captures": 2, "viewers": 20, **{k: result[k] for k in keep}}
 
 
 def main() -> None:
     frames = walk_frames()
-    for run in (run_embedded, run_nats, run_serving_512):
+    runs = {"embedded": run_embedded, "nats": run_nats, "serving_512": run_serving_512}
+    for name in os.environ.get("KINETRE_BENCH_NETWORK_RUNS", ",".join(runs)).split(","):
+        run = runs[name]
         print(json.dumps(run(frames)), flush=True)
 
 

@@ -34,6 +34,7 @@ from ..skeleton.models import MODELS, Skeleton
 MAGIC = b"KTX1"
 HEADER = struct.Struct("<4sIIIdd")
 MAX_MESSAGE = 1 << 16  # bytes; a Kinect-20 frame is ~1.5 kB
+_NUMBER_TYPES = {int, float}
 
 
 class ProtocolError(ValueError):
@@ -75,14 +76,22 @@ def parse_skeleton(msg: dict) -> tuple[int, float, Skeleton]:
         raise ProtocolError(f"'positions' must list {j} joints for {model.name}")
     if not isinstance(tracked, list) or len(tracked) != j or not all(isinstance(b, bool) for b in tracked):
         raise ProtocolError(f"'tracked' must list {j} booleans for {model.name}")
+    # One pass over the row types instead of a check per value: this runs for every frame of every client.
+    # json.loads yields only these types, and bool is not a number here (type(), not isinstance()).
+    present = [row for row in rows if row is not None]
+    if (any(type(row) is not list or len(row) != 3 for row in present)
+            or not {type(v) for row in present for v in row} <= _NUMBER_TYPES):
+        bad = next(i for i, row in enumerate(rows) if row is not None and (
+            type(row) is not list or len(row) != 3 or not {type(v) for v in row} <= _NUMBER_TYPES))
+        raise ProtocolError(f"joint {bad} of 'positions' must be [x, y, z] numbers or null")
     pos = np.full((j, 3), np.nan)
-    for i, row in enumerate(rows):
-        if row is None:
-            continue
-        if (not isinstance(row, list) or len(row) != 3
-                or not all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in row)):
-            raise ProtocolError(f"joint {i} of 'positions' must be [x, y, z] numbers or null")
-        pos[i] = row
+    try:
+        if len(present) == j:
+            pos[:] = rows
+        elif present:
+            pos[[i for i, row in enumerate(rows) if row is not None]] = present
+    except OverflowError:  # an integer beyond float range
+        raise ProtocolError("a joint position is out of range") from None
     try:
         skeleton = Skeleton(model, pos, np.asarray(tracked, dtype=bool))
     except BadSkeletonError as exc:

@@ -95,7 +95,8 @@ class Scene:
         self.seq = 0
         self.recording: TakeLog | None = None
         self.last_error = ""
-        self.solve_ms: list[float] = []  # recent solve durations, for the state line
+        self.solve_ms: list[float] = []  # recent solve round trips (wall), for the state line
+        self.solve_cpu_ms: list[float] = []  # the same solves' CPU time in the solver
         self.joint_map = None  # a JointMap: the n-th user to possess drives with the joints sources[n] keeps
         self._lock = asyncio.Lock()  # one attach/solve at a time; both run in a worker thread
         self._dirty = asyncio.Event()
@@ -295,6 +296,8 @@ class Scene:
                 self._rebuild_rig_later()
                 raise
             self.solve_ms = (self.solve_ms + [1000 * (time.perf_counter() - start)])[-60:]
+            if hasattr(self.solver, "cpu_ms"):
+                self.solve_cpu_ms = (self.solve_cpu_ms + [self.solver.cpu_ms])[-60:]
             self.pose = pose
             if self.recording is not None:  # on disk before any viewer sees the frame
                 self.recording.append(self.seq + 1, now_ms(), pose, {u.client: u.latest for u in users})
@@ -329,6 +332,7 @@ class Scene:
             "joint_map": None if self.joint_map is None else {"name": self.joint_map.path,
                                                              "sources": len(self.joint_map.sources)},
             "solve_ms": float(np.median(self.solve_ms)) if self.solve_ms else None,
+            "solve_cpu_ms": float(np.median(self.solve_cpu_ms)) if self.solve_cpu_ms else None,
             "error": self.last_error,
             "dropped": {"merged": self._skeletons.skipped if self._skeletons else 0, "late": self.late},
         }

@@ -13,6 +13,7 @@ from __future__ import annotations
 import asyncio
 import multiprocessing
 import os
+import time
 
 import numpy as np
 
@@ -32,13 +33,19 @@ class InlineSolver:
 
     def __init__(self):
         self.rig = None
+        self.cpu_ms = 0.0  # CPU time of the last solve
 
     async def attach(self, graph, skeletons, settings: SolverSettings = SolverSettings()) -> list[np.ndarray]:
         self.rig = await asyncio.to_thread(attach, graph, skeletons, settings=settings)
         return self.rig.attached_joints
 
     async def solve(self, skeletons) -> GraphPose:
-        return await asyncio.to_thread(self.rig.solve, skeletons)
+        def timed():
+            start = time.thread_time()
+            pose = self.rig.solve(skeletons)
+            self.cpu_ms = 1000 * (time.thread_time() - start)
+            return pose
+        return await asyncio.to_thread(timed)
 
     def detach(self) -> None:
         self.rig = None
@@ -70,7 +77,11 @@ def warm_up(frames: int = 3) -> None:
 
 
 def _serve(conn) -> None:
-    """The child: one rig, requests answered in order until the pipe closes."""
+    """The child: one rig, requests answered in order until the pipe closes.
+
+    Each reply is (status, value, CPU seconds this request took here): the scene reports the solve's own
+    CPU cost beside its round trip, which also counts waiting for a core on a busy machine.
+    """
     os.environ.setdefault("OMP_NUM_THREADS", "1")
     try:
         warm_up()
@@ -82,19 +93,21 @@ def _serve(conn) -> None:
             request = conn.recv()
         except (EOFError, OSError):
             return
+        start = time.thread_time()
         try:
             if request[0] == "attach":
                 _, graph, skeletons, settings = request
                 rig = attach(graph, skeletons, settings=settings)
-                conn.send(("ok", rig.attached_joints))
+                reply = ("ok", rig.attached_joints)
             elif request[0] == "solve":
-                conn.send(("ok", rig.solve(request[1])))
-            elif request[0] == "ping":
-                conn.send(("ok", os.getpid()))
+                reply = ("ok", rig.solve(request[1]))
+            else:  # "ping"
+                reply = ("ok", os.getpid())
         except KinetreError as exc:
-            conn.send(("error", exc))
+            reply = ("error", exc)
         except Exception as exc:  # a bug in a solve is reported to the scene, the process lives on
-            conn.send(("error", KinetreError(f"solve failed: {type(exc).__name__}: {exc}")))
+            reply = ("error", KinetreError(f"solve failed: {type(exc).__name__}: {exc}"))
+        conn.send((*reply, time.thread_time() - start))
 
 
 class SolveWorker:
@@ -105,6 +118,7 @@ class SolveWorker:
         self._conn = None
         self._lock = asyncio.Lock()
         self.restarts = 0  # processes lost and replaced
+        self.cpu_ms = 0.0  # CPU time the child spent on the last request
 
     @property
     def pid(self) -> int | None:
@@ -126,14 +140,28 @@ class SolveWorker:
                 await asyncio.to_thread(self._start)
             try:
                 self._conn.send(request)
-                status, value = await asyncio.to_thread(self._conn.recv)
+                await self._readable()
+                status, value, cpu = self._conn.recv()
             except (EOFError, OSError, BrokenPipeError):
                 self._proc = None
                 self.restarts += 1  # the next call starts a new process
                 raise SolverLost("the solve process stopped; possess again") from None
+        self.cpu_ms = 1000 * cpu
         if status == "error":
             raise value
         return value
+
+    async def _readable(self) -> None:
+        """Wait for the reply on the event loop itself: a thread blocked in recv() would then need the GIL
+        from the busy serving thread, adding up to a switch interval (5 ms) per hop to every solve."""
+        loop = asyncio.get_running_loop()
+        ready = loop.create_future()
+        fd = self._conn.fileno()
+        loop.add_reader(fd, lambda: ready.done() or ready.set_result(None))  # also wakes on EOF (child died)
+        try:
+            await ready
+        finally:
+            loop.remove_reader(fd)
 
     async def start(self) -> int:
         """Spawn the process now (instead of at the first possession); returns its pid."""
