@@ -6,20 +6,7 @@ from numba import njit
 
 import kinetre
 from kinetre.graph.distance import distance_5d
-from kinetre.graph.weights import K, skinning_weights
-
-
-@njit(cache=True)
-def _insert(best_d, best_i, d, i):
-    if d >= best_d[K]:
-        return
-    p = K
-    while p > 0 and best_d[p - 1] > d:
-        best_d[p] = best_d[p - 1]
-        best_i[p] = best_i[p - 1]
-        p -= 1
-    best_d[p] = d
-    best_i[p] = i
+from kinetre.graph.weights import K, _insert, skinning_weights
 
 
 @njit(cache=True)
