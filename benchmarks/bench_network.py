@@ -80,29 +80,27 @@ def rss_mb(pid: int) -> float:
     return round(total, 1)
 
 
-def cpu_seconds(pid: int) -> tuple[float, float]:
-    """(the process's own CPU time, its descendants' CPU time), seconds of user + system, all threads."""
-    own = rest = 0.0
-    for p in tree(pid):
-        try:
-            fields = Path(f"/proc/{p}/stat").read_text().rsplit(")", 1)[1].split()
-        except (FileNotFoundError, ProcessLookupError):
-            continue
-        seconds = (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")  # utime, stime
-        if p == pid:
-            own = seconds
-        else:
-            rest += seconds
-    return own, rest
+def schedstat(pid: int) -> tuple[float, float]:
+    """(CPU seconds, seconds spent runnable but waiting for a core) of all threads of one process."""
+    cpu = wait = 0.0
+    try:
+        for task in Path(f"/proc/{pid}/task").iterdir():
+            fields = (task / "schedstat").read_text().split()
+            cpu, wait = cpu + int(fields[0]) / 1e9, wait + int(fields[1]) / 1e9
+    except (FileNotFoundError, ProcessLookupError):
+        pass
+    return cpu, wait
 
 
 def cpu_use(pids: dict) -> dict:
-    """CPU seconds so far of every named process (and of its children, e.g. the solve worker) and of this one."""
-    use = {"load_generator": time.process_time()}
+    """{name: (CPU s, waiting for a CPU s)} so far of this process (the load generator), of every named
+    process and, separately, of its children (e.g. the solve worker)."""
+    use = {"load_generator": schedstat(os.getpid())}
     for name, pid in pids.items():
-        use[name], children = cpu_seconds(pid)
+        use[name] = schedstat(pid)
+        children = [schedstat(p) for p in tree(pid)[1:]]
         if children:
-            use[name + "_children"] = children
+            use[name + "_children"] = tuple(map(sum, zip(*children)))
     return use
 
 
@@ -137,13 +135,16 @@ class Capture(Viewer):
     def __init__(self, url, frames: list[tuple[str, str]], index):
         super().__init__(url)
         self.frames, self.index, self.sent, self.stamps, self.seq = frames, index, 0, [], 0
+        self.received_blocks = 0
         self.state = None
 
     async def run(self, connected=None):
         async with connect(self.url, max_size=1 << 22, compression=None) as ws:
             self.ws = ws
             async for data in ws:
-                if isinstance(data, str):
+                if isinstance(data, bytes):
+                    self.received_blocks += 1
+                elif isinstance(data, str):
                     if data.startswith('{"type": "stats"'):
                         self.stats = json.loads(data)
                     elif data.startswith('{"type": "state"'):
@@ -211,11 +212,15 @@ async def load(base: str, token: str | None, frames, pids: dict, captures=CAPTUR
     t0 = time.monotonic()
     until = t0 + seconds
     mark = [len(v.blocks) for v in views]
+    sent_before, blocks_before = sum(c.sent for c in caps), sum(c.received_blocks for c in caps)
     probe = loop.create_task(http_probe(base, token, until))
     await asyncio.gather(*(c.stream(until) for c in caps))
     http_ms = await probe
     window = time.monotonic() - t0
     cpu_end = cpu_use(pids)
+    frames_in_window = sum(c.sent for c in caps) - sent_before
+    blocks_in_window = sum(len(v.blocks) - m for v, m in zip(views, mark)) + sum(c.received_blocks for c in caps) \
+        - blocks_before
     await asyncio.sleep(2.0)  # drain: everything in flight arrives
     rss_end = {name: rss_mb(pid) for name, pid in pids.items()}
     async with httpx.AsyncClient(base_url=base, params={"token": token} if token else None) as http:
@@ -254,7 +259,15 @@ async def load(base: str, token: str | None, frames, pids: dict, captures=CAPTUR
         "rss_mb": {name: [rss_start[name], rss_end[name]] for name in pids},
         "http_median_ms": round(float(np.median(http_ms)), 1), "http_worst_ms": round(max(http_ms), 1),
         # share of one core over the window (200 = both cores of this machine)
-        "cpu_percent": {name: round(100 * (cpu_end[name] - cpu_start.get(name, 0.0)) / window, 1) for name in cpu_end},
+        "cpu_percent": {name: round(100 * (cpu_end[name][0] - cpu_start.get(name, (0, 0))[0]) / window, 1)
+                        for name in cpu_end},
+        # runnable but not running: the share of the window each process waited for a core (the kernel's
+        # schedstat run delay, summed over threads)
+        "waiting_for_cpu_percent": {name: round(100 * (cpu_end[name][1] - cpu_start.get(name, (0, 0))[1]) / window, 1)
+                                    for name in cpu_end},
+        # what the servers handled in the window: WebSocket messages in (skeleton frames) and out (transform
+        # blocks received by the 120 clients)
+        "messages_in_window": {"skeleton_frames": frames_in_window, "transform_blocks": blocks_in_window},
         "load_average_1min": round(os.getloadavg()[0], 2),
     }
 

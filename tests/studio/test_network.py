@@ -134,6 +134,42 @@ def test_scene_process_solves_what_a_local_scene_solves(network, walk):
     np.testing.assert_allclose(matrices, expected, atol=2e-4 * max(1.0, moved))
 
 
+def test_studio_with_its_own_scene_on_nats(network, walk):
+    """`kinetre studio --nats` without --remote-scene: the scene runs in the studio and its channels are room b's
+    NATS subjects, so a capture client on another machine drives it straight over the bus and every solved
+    block is on the bus too, byte for byte what the studio's own pages get."""
+    nats_url = network["nats"].url
+    studio, url = start_server(nodes=NODES, nats=nats_url, room="b", token=B)
+
+    async def go():
+        bus = await NatsChannels.connect(nats_url, "b", B)
+        seen = bus.subscribe("kinetre.transforms")
+        await bus.ready()
+        async with StudioClient(url, B) as page:
+            await possess(page, walk[0])  # page → studio → NATS → the studio's scene → NATS → studio → page
+            # a capture client elsewhere, publishing on the bus only: the scene counts its frames
+            bus.publish(Frame("kinetre.skeleton.elsewhere", 1, time.time() * 1000, frame_message(1, walk[3]).encode()))
+            await page.wait(lambda c: any(u["client"] == "elsewhere" and u["frames"] == 1 for u in c.state["users"]),
+                            30)
+            t1 = time.time() * 1000
+            await page.send(frame_message(2, walk[10], t=t1))
+            await wait_for(page, t1)
+            block = next(b for t, b in page.blocks if t == t1)
+            while (frame := await seen.next(10)) is not None:
+                if unpack_transforms(frame.data)[2] == t1:
+                    await bus.close()
+                    return block, frame.data, page.state["mesh"]["nodes"]
+        await bus.close()
+        return block, None, page.state["mesh"]["nodes"]
+
+    try:
+        block, on_bus, nodes = asyncio.run(go())
+    finally:
+        stop(studio)
+    assert on_bus == block
+    assert unpack_transforms(block)[4].shape[0] == nodes > 0
+
+
 def test_room_tokens_are_required(network):
     url = network["url"]
     assert httpx.get(url + "/api/state").status_code == 401

@@ -25,6 +25,7 @@ from __future__ import annotations
 import json
 import math
 import struct
+from itertools import chain
 
 import numpy as np
 
@@ -34,7 +35,7 @@ from ..skeleton.models import MODELS, Skeleton
 MAGIC = b"KTX1"
 HEADER = struct.Struct("<4sIIIdd")
 MAX_MESSAGE = 1 << 16  # bytes; a Kinect-20 frame is ~1.5 kB
-_NUMBER_TYPES = {int, float}
+_NUMBER_TYPES, _BOOL, _LIST, _THREE = {int, float}, {bool}, {list}, {3}
 
 
 class ProtocolError(ValueError):
@@ -74,15 +75,15 @@ def parse_skeleton(msg: dict) -> tuple[int, float, Skeleton]:
     j = len(model.joints)
     if not isinstance(rows, list) or len(rows) != j:
         raise ProtocolError(f"'positions' must list {j} joints for {model.name}")
-    if not isinstance(tracked, list) or len(tracked) != j or not all(isinstance(b, bool) for b in tracked):
+    if not isinstance(tracked, list) or len(tracked) != j or not set(map(type, tracked)) <= _BOOL:
         raise ProtocolError(f"'tracked' must list {j} booleans for {model.name}")
-    # One pass over the row types instead of a check per value: this runs for every frame of every client.
-    # json.loads yields only these types, and bool is not a number here (type(), not isinstance()).
+    # Type checks by set(map(type, ...)), iterated in C: this runs for every frame of every client. json.loads
+    # yields only JSON types, and a bool is not a number here (type(), not isinstance()).
     present = [row for row in rows if row is not None]
-    if (any(type(row) is not list or len(row) != 3 for row in present)
-            or not {type(v) for row in present for v in row} <= _NUMBER_TYPES):
+    if (not set(map(type, present)) <= _LIST or not set(map(len, present)) <= _THREE
+            or not set(map(type, chain.from_iterable(present))) <= _NUMBER_TYPES):
         bad = next(i for i, row in enumerate(rows) if row is not None and (
-            type(row) is not list or len(row) != 3 or not {type(v) for v in row} <= _NUMBER_TYPES))
+            type(row) is not list or len(row) != 3 or not set(map(type, row)) <= _NUMBER_TYPES))
         raise ProtocolError(f"joint {bad} of 'positions' must be [x, y, z] numbers or null")
     pos = np.full((j, 3), np.nan)
     try:
