@@ -40,3 +40,14 @@ def test_skin_vertices_accepts_float32_weights():
     m = np.eye(4)[None].copy()
     m[0, :3, 3] = [1, 2, 3]
     assert np.allclose(skin_vertices(v, idx, w, m), [[1, 2, 3]] * 3)
+
+
+def test_skin_vertices_writes_into_out(body, body_graph):
+    rng = np.random.default_rng(2)
+    n = body_graph.node_count
+    pose = kinetre.GraphPose(np.eye(3) + 0.2 * rng.standard_normal((n, 3, 3)), rng.standard_normal((n, 3)))
+    m = pose.node_matrices(body_graph.nodes)
+    out = np.full_like(body.vertices, np.nan)
+    got = skin_vertices(body.vertices, body_graph.vertex_nodes, body_graph.vertex_weights, m, out=out)
+    assert got is out
+    assert np.array_equal(out, kinetre.skin(body, body_graph, pose))
