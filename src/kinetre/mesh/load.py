@@ -10,7 +10,8 @@ import numpy as np
 
 from ..errors import BadMeshError
 from .mesh import Mesh
-from .normals import vertex_normals
+from .clean import clean
+from .normals import normals_and_area
 
 # trimesh's own names for the formats we accept; ".ply.gz" etc. are decompressed first.
 FORMATS = {"obj": "obj", "ply": "ply", "stl": "stl", "off": "off", "glb": "glb", "gltf": "gltf"}
@@ -87,28 +88,29 @@ def mesh_from_trimesh(loaded, source: str = "") -> Mesh:
         bad = int((~np.isfinite(tm.vertices).all(axis=1)).sum())
         raise BadMeshError(f"{label}: {bad} vertices have NaN or infinite coordinates")
 
-    tm = tm.copy()
-    tm.merge_vertices()  # by position; vertices with different UVs stay apart
-    tm.update_faces(tm.nondegenerate_faces(height=None))
-    tm.update_faces(tm.unique_faces())
-    tm.remove_unreferenced_vertices()
+    tm = clean(tm)  # weld by position (UV seams stay apart), drop degenerate/duplicate faces, unused vertices
     if len(tm.faces) == 0:
         raise BadMeshError(f"{label}: every face is degenerate (zero area)")
-    vertices = np.ascontiguousarray(tm.vertices, dtype=np.float64)
-    faces = np.ascontiguousarray(tm.faces, dtype=np.int32)
-    tri = vertices[faces]
-    area = 0.5 * np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1).sum()
+    vertices = np.array(tm.vertices, dtype=np.float64, order="C")  # a copy: `loaded` may be the caller's
+    faces = np.array(tm.faces, dtype=np.int32, order="C")
+    uvs = uvs_of(tm.visual, len(vertices))
+    normals, area = normals_and_area(vertices, faces, weld=uvs is not None)
     scale = float(np.ptp(vertices, axis=0).max())
     if not area > 1e-12 * max(scale, 1e-300) ** 2:
         raise BadMeshError(f"{label}: total surface area is zero (all faces are flat lines or points)")
 
-    uvs = colors = material = None
+    colors = material = None
     visual = tm.visual
     if getattr(visual, "kind", None) == "texture":
-        if visual.uv is not None and len(visual.uv) == len(vertices):
-            uvs = np.ascontiguousarray(visual.uv, dtype=np.float32)
         material = getattr(visual, "material", None)
     elif getattr(visual, "kind", None) == "vertex":
         colors = np.ascontiguousarray(visual.vertex_colors, dtype=np.uint8)
-    return Mesh(vertices=vertices, faces=faces, normals=vertex_normals(vertices, faces, weld=uvs is not None), uvs=uvs,
-                colors=colors, material=material, source=source)
+    return Mesh(vertices=vertices, faces=faces, normals=normals, uvs=uvs, colors=colors, material=material,
+                source=source)
+
+
+def uvs_of(visual, count: int) -> np.ndarray | None:
+    """(count, 2) float32 texture coordinates of a trimesh visual, or None."""
+    if getattr(visual, "kind", None) == "texture" and visual.uv is not None and len(visual.uv) == count:
+        return np.ascontiguousarray(visual.uv, dtype=np.float32)
+    return None

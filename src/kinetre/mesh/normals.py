@@ -2,29 +2,66 @@
 from __future__ import annotations
 
 import numpy as np
+from numba import njit
 
 
-def vertex_normals(vertices: np.ndarray, faces: np.ndarray, weld: bool = True) -> np.ndarray:
-    """(V, 3) float64 unit normals: the area-weighted sum of the incident face normals.
+@njit(cache=True)
+def _accumulate(vertices, faces, index, size):
+    # Σ over incident faces of e1 × e2 (length = 2 × area), face by face and corner by corner, the order
+    # np.bincount adds in; and the total area
+    acc = np.zeros((size, 3))
+    area2 = 0.0
+    for f in range(faces.shape[0]):
+        a, b, c = faces[f, 0], faces[f, 1], faces[f, 2]
+        ux = vertices[b, 0] - vertices[a, 0]
+        uy = vertices[b, 1] - vertices[a, 1]
+        uz = vertices[b, 2] - vertices[a, 2]
+        vx = vertices[c, 0] - vertices[a, 0]
+        vy = vertices[c, 1] - vertices[a, 1]
+        vz = vertices[c, 2] - vertices[a, 2]
+        nx = uy * vz - uz * vy
+        ny = uz * vx - ux * vz
+        nz = ux * vy - uy * vx
+        area2 += np.sqrt(nx * nx + ny * ny + nz * nz)
+        for k in range(3):
+            i = index[faces[f, k]]
+            acc[i, 0] += nx
+            acc[i, 1] += ny
+            acc[i, 2] += nz
+    return acc, 0.5 * area2
+
+
+@njit(cache=True)
+def _unit(acc, index):
+    n = np.empty((index.shape[0], 3))
+    for v in range(index.shape[0]):
+        x, y, z = acc[index[v], 0], acc[index[v], 1], acc[index[v], 2]
+        length = np.sqrt(x * x + y * y + z * z)
+        if length > 1e-300:
+            n[v, 0], n[v, 1], n[v, 2] = x / length, y / length, z / length
+        else:  # faces cancel (or none): a unit normal rather than NaN
+            n[v, 0], n[v, 1], n[v, 2] = 0.0, 1.0, 0.0
+    return n
+
+
+def normals_and_area(vertices: np.ndarray, faces: np.ndarray, weld: bool = True) -> tuple[np.ndarray, float]:
+    """(V, 3) float64 unit normals — the area-weighted sum of the incident face normals — and the surface area.
 
     With `weld`, copies of one position (split at UV seams) get the same normal, so the two sides
     of a seam skin identically; pass False when vertices are known to be unique (it saves a sort).
     A vertex whose faces cancel (or with no faces) gets +Y rather than NaN.
     """
+    vertices = np.ascontiguousarray(vertices, dtype=np.float64)
     if weld:
         _, index = np.unique(vertices, axis=0, return_inverse=True)
-        index = index.reshape(-1)
+        index = index.reshape(-1).astype(np.int64)
     else:
-        index = np.arange(len(vertices))
-    tri = vertices[faces]
-    face_n = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])  # length = 2 * area
-    corners = index[faces].reshape(-1)
-    size = int(index.max()) + 1
-    # bincount sums per vertex far faster than np.add.at
-    acc = np.stack([np.bincount(corners, np.repeat(face_n[:, c], 3), minlength=size) for c in range(3)], axis=1)
-    n = acc[index]
-    length = np.linalg.norm(n, axis=1)
-    ok = length > 1e-300
-    n[ok] /= length[ok, None]
-    n[~ok] = (0.0, 1.0, 0.0)
-    return n
+        index = np.arange(len(vertices), dtype=np.int64)
+    size = int(index.max()) + 1 if len(index) else 0
+    acc, area = _accumulate(vertices, np.ascontiguousarray(faces), index, size)
+    return _unit(acc, index), float(area)
+
+
+def vertex_normals(vertices: np.ndarray, faces: np.ndarray, weld: bool = True) -> np.ndarray:
+    """(V, 3) float64 unit area-weighted vertex normals (see `normals_and_area`)."""
+    return normals_and_area(vertices, faces, weld)[0]

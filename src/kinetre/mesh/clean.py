@@ -1,0 +1,123 @@
+"""Mesh cleanup (SPEC: weld by position, drop degenerate/duplicate faces and unreferenced vertices), fast
+when there is nothing to clean.
+
+trimesh's `merge_vertices`, `nondegenerate_faces`, `unique_faces` and `remove_unreferenced_vertices` sort
+every vertex and face (seconds on a million-vertex mesh) even when they change nothing, which is the usual
+case for a scanned or exported mesh. `clean` first checks, in one linear pass each, whether each of them
+would be a no-op — by the same criteria, on the same rounded values — and only runs trimesh's when one of
+them would change the mesh. The result is the mesh trimesh's cleanup gives either way.
+"""
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+# trimesh's default tolerance (tol.merge) for welding and degenerate faces
+_MARGIN = 1.0 + 1e-6  # a face this close to trimesh's threshold is left to trimesh's own test
+
+
+@njit(cache=True)
+def _rows_distinct(rows):
+    """True if no two rows of the (n, k) int64 array are equal (open-addressing hash set, O(n))."""
+    n, k = rows.shape
+    size = 1
+    while size < 2 * n:
+        size *= 2
+    mask = size - 1
+    table = np.full(size, -1, np.int64)
+    for r in range(n):
+        h = np.uint64(1469598103934665603)
+        for c in range(k):
+            h = (h ^ np.uint64(rows[r, c])) * np.uint64(1099511628211)
+            h ^= h >> np.uint64(29)
+        slot = np.int64(h & np.uint64(mask))
+        while table[slot] >= 0:
+            other = table[slot]
+            same = True
+            for c in range(k):
+                if rows[other, c] != rows[r, c]:
+                    same = False
+                    break
+            if same:
+                return False
+            slot = (slot + 1) & mask
+        table[slot] = r
+    return True
+
+
+@njit(cache=True)
+def _faces_fine(vertices, faces, height):
+    """True if every face is clearly non-degenerate by trimesh's test (both heights of its 2D bounding box,
+    2·area / edge, above `height`, with margin), its sorted corners are distinct from every other face's and
+    every vertex is used."""
+    nf = faces.shape[0]
+    used = np.zeros(vertices.shape[0], np.bool_)
+    limit = height * _MARGIN
+    for f in range(nf):
+        a, b, c = faces[f, 0], faces[f, 1], faces[f, 2]
+        used[a] = True
+        used[b] = True
+        used[c] = True
+        ux = vertices[b, 0] - vertices[a, 0]
+        uy = vertices[b, 1] - vertices[a, 1]
+        uz = vertices[b, 2] - vertices[a, 2]
+        vx = vertices[c, 0] - vertices[a, 0]
+        vy = vertices[c, 1] - vertices[a, 1]
+        vz = vertices[c, 2] - vertices[a, 2]
+        nx = uy * vz - uz * vy
+        ny = uz * vx - ux * vz
+        nz = ux * vy - uy * vx
+        area2 = np.sqrt(nx * nx + ny * ny + nz * nz)
+        lu = np.sqrt(ux * ux + uy * uy + uz * uz)
+        lv = np.sqrt(vx * vx + vy * vy + vz * vz)
+        if not (lu > limit and lv > limit and area2 > limit * lu and area2 > limit * lv):
+            return False
+    for v in range(used.shape[0]):
+        if not used[v]:
+            return False
+    ordered = np.empty((nf, 3), np.int64)
+    for f in range(nf):
+        a, b, c = faces[f, 0], faces[f, 1], faces[f, 2]
+        if a > b:
+            a, b = b, a
+        if b > c:
+            b, c = c, b
+        if a > b:
+            a, b = b, a
+        ordered[f, 0], ordered[f, 1], ordered[f, 2] = a, b, c
+    return _rows_distinct(ordered)
+
+
+def is_clean(tm) -> bool:
+    """Whether trimesh's merge_vertices / nondegenerate_faces / unique_faces / remove_unreferenced_vertices
+    would all leave the `trimesh.Trimesh` unchanged (the keys trimesh welds by, rounded as it rounds them)."""
+    from trimesh import tol, util
+
+    vertices = np.asarray(tm.vertices, dtype=np.float64)
+    faces = np.asarray(tm.faces)
+    if len(vertices) == 0 or len(faces) == 0:
+        return False
+    if not _faces_fine(np.ascontiguousarray(vertices), np.ascontiguousarray(faces, dtype=np.int64), tol.merge):
+        return False
+    # trimesh.grouping.merge_vertices's key: position (and UV, and cached normals) rounded to its digits
+    stacked = [vertices * (10 ** util.decimal_to_digits(tol.merge))]
+    visual = tm.visual
+    if visual.defined and visual.kind == "texture" and visual.uv is not None and len(visual.uv) == len(vertices):
+        stacked.append(visual.uv * 10 ** 4)
+    normals = tm._cache["vertex_normals"]
+    if np.shape(normals) == vertices.shape:
+        stacked.append(normals * 10 ** 2)
+    key = np.column_stack(stacked).round().astype(np.int64)
+    return bool(_rows_distinct(np.ascontiguousarray(key)))
+
+
+def clean(tm):
+    """The cleaned mesh: `tm` itself when there is nothing to clean, else a cleaned copy."""
+    if is_clean(tm):
+        return tm
+    tm = tm.copy()
+    tm.merge_vertices()  # by position; vertices with different UVs stay apart
+    tm.update_faces(tm.nondegenerate_faces(height=None))
+    tm.update_faces(tm.unique_faces())
+    tm.remove_unreferenced_vertices()
+    return tm
