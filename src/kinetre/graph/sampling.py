@@ -12,6 +12,7 @@ import numpy as np
 from numba import njit
 
 from ..errors import BadGraphError
+from ..mesh.normals import edges_and_cross
 from .distance import distance_5d
 
 @njit(cache=True)
@@ -19,16 +20,7 @@ def face_double_areas(vertices, faces):
     """(F,) float64: twice each triangle's area (|e1 × e2|), without (F, 3, 3) temporaries."""
     out = np.empty(faces.shape[0])
     for f in range(faces.shape[0]):
-        a, b, c = faces[f, 0], faces[f, 1], faces[f, 2]
-        ux = vertices[b, 0] - vertices[a, 0]
-        uy = vertices[b, 1] - vertices[a, 1]
-        uz = vertices[b, 2] - vertices[a, 2]
-        vx = vertices[c, 0] - vertices[a, 0]
-        vy = vertices[c, 1] - vertices[a, 1]
-        vz = vertices[c, 2] - vertices[a, 2]
-        nx = uy * vz - uz * vy
-        ny = uz * vx - ux * vz
-        nz = ux * vy - uy * vx
+        nx, ny, nz = edges_and_cross(vertices, faces[f, 0], faces[f, 1], faces[f, 2])[6:]
         out[f] = np.sqrt(nx * nx + ny * ny + nz * nz)
     return out
 

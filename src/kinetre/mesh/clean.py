@@ -12,6 +12,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from .normals import edges_and_cross
+
 # trimesh's default tolerance (tol.merge) for welding and degenerate faces
 _MARGIN = 1.0 + 1e-6  # a face this close to trimesh's threshold is left to trimesh's own test
 
@@ -58,15 +60,7 @@ def _faces_fine(vertices, faces, height):
         used[a] = True
         used[b] = True
         used[c] = True
-        ux = vertices[b, 0] - vertices[a, 0]
-        uy = vertices[b, 1] - vertices[a, 1]
-        uz = vertices[b, 2] - vertices[a, 2]
-        vx = vertices[c, 0] - vertices[a, 0]
-        vy = vertices[c, 1] - vertices[a, 1]
-        vz = vertices[c, 2] - vertices[a, 2]
-        nx = uy * vz - uz * vy
-        ny = uz * vx - ux * vz
-        nz = ux * vy - uy * vx
+        ux, uy, uz, vx, vy, vz, nx, ny, nz = edges_and_cross(vertices, a, b, c)
         area2 = np.sqrt(nx * nx + ny * ny + nz * nz)
         lu = np.sqrt(ux * ux + uy * uy + uz * uz)
         lv = np.sqrt(vx * vx + vy * vy + vz * vz)

@@ -5,6 +5,18 @@ import numpy as np
 from numba import njit
 
 
+@njit(cache=True, inline="always")
+def edges_and_cross(vertices, a, b, c):
+    """The edges u = b − a, v = c − a of a triangle and u × v (length = twice its area)."""
+    ux = vertices[b, 0] - vertices[a, 0]
+    uy = vertices[b, 1] - vertices[a, 1]
+    uz = vertices[b, 2] - vertices[a, 2]
+    vx = vertices[c, 0] - vertices[a, 0]
+    vy = vertices[c, 1] - vertices[a, 1]
+    vz = vertices[c, 2] - vertices[a, 2]
+    return ux, uy, uz, vx, vy, vz, uy * vz - uz * vy, uz * vx - ux * vz, ux * vy - uy * vx
+
+
 @njit(cache=True)
 def _accumulate(vertices, faces, index, size):
     # Σ over incident faces of e1 × e2 (length = 2 × area), face by face and corner by corner, the order
@@ -12,16 +24,7 @@ def _accumulate(vertices, faces, index, size):
     acc = np.zeros((size, 3))
     area2 = 0.0
     for f in range(faces.shape[0]):
-        a, b, c = faces[f, 0], faces[f, 1], faces[f, 2]
-        ux = vertices[b, 0] - vertices[a, 0]
-        uy = vertices[b, 1] - vertices[a, 1]
-        uz = vertices[b, 2] - vertices[a, 2]
-        vx = vertices[c, 0] - vertices[a, 0]
-        vy = vertices[c, 1] - vertices[a, 1]
-        vz = vertices[c, 2] - vertices[a, 2]
-        nx = uy * vz - uz * vy
-        ny = uz * vx - ux * vz
-        nz = ux * vy - uy * vx
+        nx, ny, nz = edges_and_cross(vertices, faces[f, 0], faces[f, 1], faces[f, 2])[6:]
         area2 += np.sqrt(nx * nx + ny * ny + nz * nz)
         for k in range(3):
             i = index[faces[f, k]]
