@@ -76,3 +76,25 @@ def test_a_killed_worker_is_replaced_and_the_scene_reattaches(spot64, walk):
     first, second, restarts, pose, possessing = asyncio.run(go())
     assert second != first and restarts == 1 and possessing
     assert pose is not None and np.isfinite(pose.rotations).all()
+
+
+def test_worker_under_uvloop_keeps_its_pipe_blocking(spot64, walk):
+    """The studio serves on uvloop (as uvicorn picks it), whose add_reader leaves the pipe non-blocking: a
+    reply written in two parts (a pose over 16 kB: header, then body) read in between would then fail as a lost
+    worker under load. The pipe must be blocking again after each wait, and the poses those of the inline rig."""
+    import uvloop
+    mesh, graph = spot64
+
+    async def run(solver):
+        try:
+            poses = await drive(Scene(Hub(), mesh, graph, solver=solver), walk)
+            return poses, solver
+        finally:
+            blocking = os.get_blocking(solver._conn.fileno()) if isinstance(solver, SolveWorker) else True
+            solver.close()
+            assert blocking, "the solve worker's pipe was left non-blocking"
+
+    inline, _ = asyncio.run(run(InlineSolver()))
+    worker, _ = uvloop.run(run(SolveWorker()))
+    for a, b in zip(inline, worker):
+        np.testing.assert_allclose(b, a, atol=1e-9)

@@ -162,6 +162,7 @@ class SolveWorker:
             await ready
         finally:
             loop.remove_reader(fd)
+            os.set_blocking(fd, True)  # uvloop made it non-blocking; Connection reads and writes expect blocking
 
     async def start(self) -> int:
         """Spawn the process now (instead of at the first possession); returns its pid."""
