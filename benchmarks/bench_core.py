@@ -50,9 +50,13 @@ def bench_build_graph():
                   "seconds": round(time.perf_counter() - t, 3)})
 
 
-# one record per design: the default (two-level PCG), the other preconditioners, and the exact reference
+# one record per design: the default (v-cycle PCG), variants of it, the other preconditioners, and the
+# exact reference
 DESIGNS = {
-    "pcg_two_level": SolverSettings(),
+    "pcg_v_cycle": SolverSettings(),
+    "pcg_v_cycle_no_backtracking": SolverSettings(backtracks=0),
+    "pcg_v_cycle_one_cg": SolverSettings(cg_iterations=1),
+    "pcg_two_level": SolverSettings(preconditioner="two_level"),
     "pcg_additive": SolverSettings(preconditioner="additive"),
     "pcg_coordinate": SolverSettings(preconditioner="coordinate"),
     "pcg_block_jacobi": SolverSettings(preconditioner="block_jacobi"),
@@ -119,6 +123,41 @@ def bench_solve(node_counts=(128, 256, 512), designs=tuple(DESIGNS)):
                       "backend": rig.solver.backend})
 
 
+def bench_coordinate_solve(node_counts=(256, 512)):
+    """The preconditioner's global part, (K_σ ⊗ I₃)⁻¹ r for x, y, z at once, three ways: the sparse
+    float32 factor (the solver's), a dense Cholesky (LAPACK potrs) and a dense inverse (one GEMM)."""
+    from scipy.linalg import lapack
+
+    from kinetre.deform.krylov import _coordinate_solve
+    take = load_bvh(DATA / "bvh" / "cmu_12_01_walk.bvh")
+    frames = [take.frame(i) for i in range(0, 40, 4)]
+    body = capsule_body(frames[0], radius=0.06)
+    for nodes in node_counts:
+        rig = kinetre.attach(kinetre.build_graph(body, nodes=nodes), frames[0])
+        _, ok = rig.targets(frames[5])
+        split = rig.solver.split
+        k, fac, _ = split.for_active(ok.astype(float))
+        dense = split._matrix(k[2] + split.shift_data).toarray()
+        chol, _ = lapack.dpotrf(dense, lower=1)
+        inverse = np.linalg.inv(dense)
+        r = np.random.default_rng(0).standard_normal(3 * len(dense))
+        out, work, rhs = np.empty_like(r), np.empty_like(r), r.reshape(-1, 3).copy()
+        ways = {"sparse_factor": lambda: _coordinate_solve(*fac[:10], r, out, work),
+                "dense_cholesky": lambda: lapack.dpotrs(chol, rhs, lower=1),
+                "dense_inverse": lambda: inverse @ rhs}
+        for name, fn in ways.items():
+            fn()
+            best = np.inf
+            for _ in range(5):
+                c = time.thread_time()
+                for _ in range(50):
+                    fn()
+                best = min(best, (time.thread_time() - c) / 50)
+            emit({"bench": "coordinate_solve", "nodes": nodes, "unknowns": len(dense), "way": name,
+                  "factor_entries": int(len(fac[2]) + len(fac[6]) + len(dense)) if name == "sparse_factor" else
+                  int(dense.size), "cpu_us": round(best * 1e6, 1)})
+
+
 def bench_skin():
     arm = kinetre.load_mesh(DATA / "meshes" / "armadillo.obj")
     big = subdivided(arm, 2)
@@ -142,7 +181,7 @@ def bench_skin():
 
 
 if __name__ == "__main__":
-    which = sys.argv[1:] or ["build_graph", "solve", "skin"]
+    which = sys.argv[1:] or ["build_graph", "solve", "coordinate_solve", "skin"]
     for name in which:
         if name.startswith("solve:"):  # e.g. solve:256 → one node count, every design
             bench_solve(node_counts=tuple(int(n) for n in name[6:].split(",")))

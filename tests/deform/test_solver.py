@@ -153,7 +153,7 @@ def test_real_walk_converges_every_frame(data_dir):
         # each run warm-starts from its own poses and stops at its own 1e-3 decrease: the same
         # energies frame by frame, to the exact solve's own stopping accuracy
         rel = np.array(energies) / reference - 1
-        assert np.median(np.abs(rel)) < 2e-3, (settings, rel)
+        assert np.median(np.abs(rel)) < 1e-3, (settings, rel)
         if settings.method == "pcg" and settings.preconditioner != "coordinate":  # K_σ alone can stall early
             assert rel.max() < 2e-2, (settings, rel)
         # the mesh follows: the joints' constraint residuals are small against the 1.3 m skeleton
@@ -163,7 +163,7 @@ def test_real_walk_converges_every_frame(data_dir):
         assert np.median(err) < 0.02 and err.max() < 0.15
 
 
-PCG_DESIGNS = [SolverSettings(preconditioner=p) for p in ("two_level", "coordinate", "block_jacobi")]
+PCG_DESIGNS = [SolverSettings(preconditioner=p) for p in ("v_cycle", "two_level", "coordinate", "block_jacobi")]
 
 
 def test_split_reproduces_the_full_gauss_newton_system(armadillo):
@@ -191,7 +191,7 @@ def test_split_reproduces_the_full_gauss_newton_system(armadillo):
         v = rng.standard_normal((g.node_count, 12))
         want = full @ v.reshape(-1) + krylov.from_coordinate_layout(damp * krylov.to_coordinate_layout(v)).reshape(-1)
         got = np.empty(12 * g.node_count)
-        krylov._hessian_times(kp, ki, kx, rot, rig, bridges, damp, krylov.to_coordinate_layout(v), got)
+        krylov._hessian_times(kp, ki, kx, rot, rig, bridges, damp, split.shift, krylov.to_coordinate_layout(v), got)
         assert np.allclose(krylov.from_coordinate_layout(got).reshape(-1), want, rtol=1e-10, atol=1e-10 * abs(want).max())
 
 
@@ -211,6 +211,40 @@ def test_pcg_converges_to_the_exact_gauss_newton_minimum(armadillo, settings):
     pose = lambda x: kinetre.GraphPose(x[:, :9].reshape(-1, 3, 3), x[:, 9:])  # noqa: E731
     moved = kinetre.skin(m, g, pose(rep.x)) - kinetre.skin(m, g, pose(exact.x))
     assert np.abs(moved).max() < 1e-3 * m.diagonal
+
+
+@pytest.mark.parametrize("backend", ["cholmod", "superlu"])
+def test_coordinate_solve_inverts_the_shifted_k(armadillo, backend):
+    """S r = (K_σ ⊗ I₃)⁻¹ r from either factorisation (their permutations differ), and the residual
+    shortcut after it equals r − H S r."""
+    from kinetre.deform import krylov
+    from kinetre.deform.coordinate_split import CoordinateSplit
+    m, g = armadillo
+    cons, targets = _bend(g)
+    bridges = g.edges[np.arange(0, len(g.edges), 9)]
+    ne = NormalEquations.build(g.nodes, g.edges, bridges, cons, EnergyWeights())
+    split = CoordinateSplit(ne, backend)
+    active = np.ones(len(cons))
+    active[::4] = 0.0
+    k, fac, _ = split.for_active(active)
+    n = g.node_count
+    rng = np.random.default_rng(4)
+    r = rng.standard_normal(12 * n)
+    out, work = np.empty(12 * n), np.empty(12 * n)
+    krylov._coordinate_solve(*fac[:10], r, out, work)
+    k_sigma = split._matrix(k[2] + split.shift_data).toarray()
+    want = np.linalg.solve(k_sigma, r.reshape(-1, 3)).reshape(-1)
+    assert np.abs(out - want).max() < 1e-5 * np.abs(want).max()  # a float32 factor
+    rot, rig = np.zeros((n, 9, 9)), np.zeros((len(bridges), 18, 18))
+    x = identity_x(n) + 0.2 * rng.standard_normal((n, 12))
+    krylov.local_blocks(x[:, :9].reshape(-1, 3, 3), ne.bridges, 1.0, 1.0, rot, rig)
+    damp = rng.uniform(0, 0.1, 12 * n)
+    z, residual = np.zeros(12 * n), r.copy()
+    krylov._after_coordinate_solve(rot, rig, ne.bridges, damp, split.shift, z, residual, out)
+    h_out = np.empty(12 * n)
+    krylov._hessian_times(*k, rot, rig, ne.bridges, damp, split.shift, out, h_out)
+    assert np.allclose(z, out)
+    assert np.abs(residual - (r - h_out)).max() < 1e-4 * np.abs(r).max()
 
 
 def test_fused_energy_and_gradient_match_the_sparse_forms(armadillo):
@@ -255,7 +289,7 @@ def test_node_blocks_invert_the_diagonal_blocks_of_the_system(armadillo):
         e = np.zeros(12 * n)
         e[u::12] = 1.0
         he = np.empty(12 * n)
-        krylov._hessian_times(kp, ki, kx, rot, rig, ne.bridges, damp, e, he)
+        krylov._hessian_times(kp, ki, kx, rot, rig, ne.bridges, damp, np.zeros(12 * n), e, he)
         # other nodes' unit entries leak into a node's rows through off-diagonal blocks: remove them
         he -= _offdiagonal_part(kp, ki, kx, rig, ne.bridges, e, n)
         blocks[:, :, u] = he.reshape(n, 12)
@@ -296,4 +330,4 @@ def test_default_follows_the_exact_solve_when_few_nodes_are_constrained(data_dir
         rig.solve(f)
         assert np.all(np.diff(rig.last_report.energies) < 0)
         rel.append(rig.last_report.energy / e_exact - 1)
-    assert np.median(rel) < 2e-3 and max(rel) < 2e-2, rel
+    assert np.median(rel) < 1e-3 and max(rel) < 2e-2, rel

@@ -17,7 +17,7 @@ from __future__ import annotations
 from collections import OrderedDict
 
 import numpy as np
-from scipy.sparse import csc_matrix, csr_matrix, identity
+from scipy.sparse import csc_matrix, csr_matrix, identity, tril, triu
 
 from .normal_equations import NormalEquations, _positions, _scatter
 
@@ -68,6 +68,7 @@ class CoordinateSplit:
         self.sigma = np.zeros((nodes, 4))
         self.sigma[:, :3] = per_node[:, None]
         self.sigma = self.sigma.reshape(-1)
+        self.shift = np.repeat(self.sigma, 3)  # σ in the coordinate layout of `krylov.py`
 
         def structural(m):
             m = m.copy()
@@ -129,25 +130,31 @@ class CoordinateSplit:
         return out
 
     def _factor(self, matrix: csc_matrix):
-        """(Lp, Li, Lx, Up, Ui, Ux, row_perm, col_perm) with matrix[row_perm][:, col_perm] = L U."""
+        """(Lp, Li, Lx, L⁻¹ diagonal, Up, Ui, Ux, U⁻¹ diagonal, row_perm, col_perm) with
+        matrix[row_perm][:, col_perm] = L U; L strictly lower and U strictly upper, both by rows (CSR),
+        so both triangular solves gather along a row instead of scattering along a column (half the
+        time: no stores in the inner loop)."""
         if self.backend == "cholmod":
             f = self._symbolic.cholesky(matrix)
-            lower = f.L().tocsc()
+            lower = f.L().tocsr()
             perm = f.P().astype(np.int64)
-            upper = lower.T.tocsc()
+            upper = lower.T.tocsr()
             row_perm = col_perm = perm
         else:
             from scipy.sparse.linalg import splu
             lu = splu(matrix, permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0, options={"SymmetricMode": True})
-            lower, upper = lu.L.tocsc(), lu.U.tocsc()
+            lower, upper = lu.L.tocsr(), lu.U.tocsr()
             row_perm = np.argsort(lu.perm_r).astype(np.int64)
-            col_perm = lu.perm_c.astype(np.int64)
-        lower.sort_indices()
-        upper.sort_indices()
-        # a preconditioner needs no more than float32: half the memory traffic of the triangular solves
-        return (lower.indptr.astype(np.int32), lower.indices.astype(np.int32), lower.data.astype(np.float32),
-                upper.indptr.astype(np.int32), upper.indices.astype(np.int32), upper.data.astype(np.float32),
-                row_perm.astype(np.int32), col_perm.astype(np.int32))
+            col_perm = np.argsort(lu.perm_c).astype(np.int64)
+        out = []
+        for m, keep in ((lower, tril), (upper, triu)):
+            inverse_diagonal = 1.0 / m.diagonal()
+            m = keep(m, k=-1 if keep is tril else 1, format="csr")
+            m.sort_indices()
+            # a preconditioner needs no more than float32: half the memory traffic of the triangular solves
+            out += [m.indptr.astype(np.int32), m.indices.astype(np.int32), m.data.astype(np.float32),
+                    inverse_diagonal]
+        return tuple(out) + (row_perm.astype(np.int32), col_perm.astype(np.int32), self.shift)
 
 
 def k_times(k, y: np.ndarray) -> np.ndarray:

@@ -7,11 +7,14 @@ blocks (E_rot, Eq. 3) and bridge blocks (E_rig's R_kᵀR_j − I, Eq. 7) are den
 
     H = (K ⊗ I₃) + blockdiag_j(B_rot,j) + Σ_bridges B_rig,e + λ diag(H).
 
-Preconditioners (see `precondition`): the coordinate solve S = (K + σ I_R)⁻¹ per coordinate (one sparse
-factor for the rig, three right-hand sides), exact per-node 12×12 blocks (block Jacobi), and their
-symmetric multiplicative combination S · B · S (two-level: the factor carries the graph-wide coupling,
-the node blocks the rotation stiffness the shift σ only averages; where that product loses
-definiteness, far from rotations, CG restarts with the additive S + B).
+Preconditioners (see `_precondition`): the coordinate solve S = (K + σ I_R)⁻¹ per coordinate (one sparse
+factor for the rig, three right-hand sides), exact per-node 12×12 blocks B (block Jacobi), and their
+symmetric multiplicative combinations: B · S · B (v-cycle, the default: the node blocks smooth, the
+factor carries the graph-wide coupling; one pair of triangular solves per application) and S · B · S
+(two-level: two pairs, about as many CG iterations). The node blocks carry the rotation stiffness the
+shift σ only averages. Where such a product loses definiteness (far from rotations) CG restarts with
+the additive S + B. Since K_σ S r = r, the residual after a coordinate solve needs only the node and
+bridge blocks (`_after_coordinate_solve`), not a pass over K.
 """
 from __future__ import annotations
 
@@ -20,7 +23,7 @@ from numba import njit
 
 from .normal_equations import rigidity_block_jacobian
 
-COORDINATE, BLOCK_JACOBI, TWO_LEVEL, ADDITIVE = 0, 1, 2, 3
+COORDINATE, BLOCK_JACOBI, TWO_LEVEL, ADDITIVE, V_CYCLE = 0, 1, 2, 3, 4
 
 
 def to_coordinate_layout(v: np.ndarray) -> np.ndarray:
@@ -77,8 +80,8 @@ def local_blocks(R, bridges, w_rot, w_rig, rot_out, rig_out):
 
 
 @njit(cache=True)
-def _hessian_times(kp, ki, kx, rot, rig, bridges, damp, y, out):
-    """out = H y (see the module docstring)."""
+def _hessian_times(kp, ki, kx, rot, rig, bridges, damp, shift, y, out):
+    """out = H y (see the module docstring), as (K_σ ⊗ I₃) y + `_local_times`."""
     n4 = kp.shape[0] - 1
     for i in range(n4):
         s0 = 0.0
@@ -90,9 +93,18 @@ def _hessian_times(kp, ki, kx, rot, rig, bridges, damp, y, out):
             s0 += w * y[c]
             s1 += w * y[c + 1]
             s2 += w * y[c + 2]
-        out[3 * i] = s0 + damp[3 * i] * y[3 * i]
-        out[3 * i + 1] = s1 + damp[3 * i + 1] * y[3 * i + 1]
-        out[3 * i + 2] = s2 + damp[3 * i + 2] * y[3 * i + 2]
+        out[3 * i] = s0 + shift[3 * i] * y[3 * i]
+        out[3 * i + 1] = s1 + shift[3 * i + 1] * y[3 * i + 1]
+        out[3 * i + 2] = s2 + shift[3 * i + 2] * y[3 * i + 2]
+    _local_times(rot, rig, bridges, damp, shift, y, out)
+
+
+@njit(cache=True)
+def _local_times(rot, rig, bridges, damp, shift, y, out):
+    """out += (H − K_σ ⊗ I₃) y: the node and bridge blocks, the damping, minus the shift σ. No graph-wide
+    coupling, so after a coordinate solve z = S r the residual r − H z costs only this."""
+    for i in range(y.shape[0]):
+        out[i] += (damp[i] - shift[i]) * y[i]
     for j in range(rot.shape[0]):
         o = 12 * j
         for u in range(9):
@@ -185,57 +197,60 @@ def _node_solve(factors, r, out):
 
 
 @njit(cache=True)
-def _coordinate_solve(lp, li, lx, up, ui, ux, row_perm, col_perm, r, out, work):
-    """out = (K_σ ⊗ I₃)⁻¹ r with K_σ[row_perm][:, col_perm] = L U (L, U sparse CSC, sorted rows)."""
+def _row_minus(ptr, idx, val, k, work, s0, s1, s2):
+    """(s0, s1, s2) minus row k of a sparse triangle (CSR) times the (·, 3) vector `work`."""
+    for p in range(ptr[k], ptr[k + 1]):
+        c = 3 * idx[p]
+        w = val[p]
+        s0 -= w * work[c]
+        s1 -= w * work[c + 1]
+        s2 -= w * work[c + 2]
+    return s0, s1, s2
+
+
+@njit(cache=True)
+def _coordinate_solve(lp, li, lx, ld, up, ui, ux, ud, row_perm, col_perm, r, out, work):
+    """out = (K_σ ⊗ I₃)⁻¹ r with K_σ[row_perm][:, col_perm] = L U (strict triangles by rows, inverse
+    diagonals apart: see `CoordinateSplit._factor`)."""
     n4 = lp.shape[0] - 1
-    for k in range(n4):
+    for k in range(n4):  # L w = r[row_perm], row by row
         i = 3 * row_perm[k]
-        work[3 * k] = r[i]
-        work[3 * k + 1] = r[i + 1]
-        work[3 * k + 2] = r[i + 2]
-    for c in range(n4):  # L: diagonal first in each column
-        d = lx[lp[c]]
-        y0 = work[3 * c] / d
-        y1 = work[3 * c + 1] / d
-        y2 = work[3 * c + 2] / d
-        work[3 * c] = y0
-        work[3 * c + 1] = y1
-        work[3 * c + 2] = y2
-        for p in range(lp[c] + 1, lp[c + 1]):
-            i = 3 * li[p]
-            w = lx[p]
-            work[i] -= w * y0
-            work[i + 1] -= w * y1
-            work[i + 2] -= w * y2
-    for c in range(n4 - 1, -1, -1):  # U: diagonal last in each column
-        d = ux[up[c + 1] - 1]
-        y0 = work[3 * c] / d
-        y1 = work[3 * c + 1] / d
-        y2 = work[3 * c + 2] / d
-        work[3 * c] = y0
-        work[3 * c + 1] = y1
-        work[3 * c + 2] = y2
-        for p in range(up[c], up[c + 1] - 1):
-            i = 3 * ui[p]
-            w = ux[p]
-            work[i] -= w * y0
-            work[i + 1] -= w * y1
-            work[i + 2] -= w * y2
-    for k in range(n4):
+        s0, s1, s2 = _row_minus(lp, li, lx, k, work, r[i], r[i + 1], r[i + 2])
+        d = ld[k]
+        work[3 * k] = s0 * d
+        work[3 * k + 1] = s1 * d
+        work[3 * k + 2] = s2 * d
+    for k in range(n4 - 1, -1, -1):  # U v = w, from the last row
+        s0, s1, s2 = _row_minus(up, ui, ux, k, work, work[3 * k], work[3 * k + 1], work[3 * k + 2])
+        d = ud[k]
+        work[3 * k] = s0 * d
+        work[3 * k + 1] = s1 * d
+        work[3 * k + 2] = s2 * d
         i = 3 * col_perm[k]
-        out[i] = work[3 * k]
-        out[i + 1] = work[3 * k + 1]
-        out[i + 2] = work[3 * k + 2]
+        out[i] = s0 * d
+        out[i + 1] = s1 * d
+        out[i + 2] = s2 * d
 
 
 @njit(cache=True)
 def _precondition(kind, fac, kp, ki, kx, rot, rig, bridges, damp, node_fac, r, z, t1, t2, work):
     """z = M⁻¹ r for the chosen preconditioner (t1, t2, work: scratch)."""
-    lp, li, lx, up, ui, ux, row_perm, col_perm = fac
+    lp, li, lx, ld, up, ui, ux, ud, row_perm, col_perm, shift = fac
     if kind == BLOCK_JACOBI:
         _node_solve(node_fac, r, z)
         return
-    _coordinate_solve(lp, li, lx, up, ui, ux, row_perm, col_perm, r, z, work)
+    if kind == V_CYCLE:  # z ← B r, z ← z + S (r − H z), z ← z + B (r − H z)
+        _node_solve(node_fac, r, z)
+        _hessian_times(kp, ki, kx, rot, rig, bridges, damp, shift, z, t1)
+        for i in range(r.shape[0]):
+            t1[i] = r[i] - t1[i]
+        _coordinate_solve(lp, li, lx, ld, up, ui, ux, ud, row_perm, col_perm, t1, t2, work)
+        _after_coordinate_solve(rot, rig, bridges, damp, shift, z, t1, t2)
+        _node_solve(node_fac, t1, t2)
+        for i in range(r.shape[0]):
+            z[i] += t2[i]
+        return
+    _coordinate_solve(lp, li, lx, ld, up, ui, ux, ud, row_perm, col_perm, r, z, work)
     if kind == COORDINATE:
         return
     if kind == ADDITIVE:  # z = S r + B r: positive definite whatever the pose
@@ -243,26 +258,38 @@ def _precondition(kind, fac, kp, ki, kx, rot, rig, bridges, damp, node_fac, r, z
         for i in range(r.shape[0]):
             z[i] += t2[i]
         return
-    # symmetric multiplicative: z ← z + B (r − H z), then z ← z + S (r − H z)
-    _hessian_times(kp, ki, kx, rot, rig, bridges, damp, z, t1)
-    for i in range(r.shape[0]):
-        t1[i] = r[i] - t1[i]
+    # symmetric multiplicative: z ← S r, z ← z + B (r − H z), z ← z + S (r − H z)
+    t2[:] = z
+    z[:] = 0.0
+    _after_coordinate_solve(rot, rig, bridges, damp, shift, z, t1, t2)
     _node_solve(node_fac, t1, t2)
     for i in range(r.shape[0]):
         z[i] += t2[i]
-    _hessian_times(kp, ki, kx, rot, rig, bridges, damp, z, t1)
+    _hessian_times(kp, ki, kx, rot, rig, bridges, damp, shift, z, t1)
     for i in range(r.shape[0]):
         t1[i] = r[i] - t1[i]
-    _coordinate_solve(lp, li, lx, up, ui, ux, row_perm, col_perm, t1, t2, work)
+    _coordinate_solve(lp, li, lx, ld, up, ui, ux, ud, row_perm, col_perm, t1, t2, work)
     for i in range(r.shape[0]):
         z[i] += t2[i]
+
+
+@njit(cache=True)
+def _after_coordinate_solve(rot, rig, bridges, damp, shift, z, residual, step):
+    """z += step, residual ← residual − H step, for step = S residual: since K_σ step = residual, that is
+    −(H − K_σ ⊗ I₃) step, node-local (no pass over K)."""
+    for i in range(z.shape[0]):
+        z[i] += step[i]
+        residual[i] = 0.0
+    _local_times(rot, rig, bridges, damp, shift, step, residual)
+    for i in range(z.shape[0]):
+        residual[i] = -residual[i]
 
 
 @njit(cache=True)
 def pcg(kind, fac, kp, ki, kx, rot, rig, bridges, damp, node_fac, b, max_iterations, tolerance):
     """Solve H x = b approximately from x = 0: stops after `max_iterations` or when ‖r‖ ≤ tolerance ‖b‖.
 
-    Returns (x, iterations). Every iterate lowers the quadratic model ½ xᵀHx − bᵀx, so even one
+    Returns (x, iterations, converged): `converged` says the residual reached the tolerance. Every iterate lowers the quadratic model ½ xᵀHx − bᵀx, so even one
     iteration is a descent direction for the energy.
     """
     n = b.shape[0]
@@ -276,20 +303,20 @@ def pcg(kind, fac, kp, ki, kx, rot, rig, bridges, damp, node_fac, b, max_iterati
     work = np.empty(n)
     bnorm = np.sqrt(b @ b)
     if bnorm == 0.0:
-        return x, 0
+        return x, 0, True
     _precondition(kind, fac, kp, ki, kx, rot, rig, bridges, damp, node_fac, r, z, t1, t2, work)
     p[:] = z
     rz = r @ z
     it = 0
     while it < max_iterations:
-        if not (rz > 0.0) and kind == TWO_LEVEL:
+        if not (rz > 0.0) and (kind == TWO_LEVEL or kind == V_CYCLE):
             # far from rotations E_rot's blocks outgrow 2 (K + σ I) and the multiplicative form can lose
             # definiteness: restart from x with the additive form, which cannot
             kind = ADDITIVE
             _precondition(kind, fac, kp, ki, kx, rot, rig, bridges, damp, node_fac, r, z, t1, t2, work)
             p[:] = z
             rz = r @ z
-        _hessian_times(kp, ki, kx, rot, rig, bridges, damp, p, hp)
+        _hessian_times(kp, ki, kx, rot, rig, bridges, damp, fac[10], p, hp)
         php = p @ hp
         if not (php > 0.0) or not (rz > 0.0):
             break
@@ -308,4 +335,4 @@ def pcg(kind, fac, kp, ki, kx, rot, rig, bridges, damp, node_fac, b, max_iterati
         rz = rz_new
         p *= beta
         p += z
-    return x, it
+    return x, it, np.sqrt(r @ r) <= tolerance * bnorm

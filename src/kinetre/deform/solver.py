@@ -21,11 +21,12 @@ import numpy as np
 from .coordinate_split import CoordinateSplit
 from .factor import NotPositiveDefinite, ReusedCholesky
 from .gradient import energy_gradient
-from .krylov import ADDITIVE, BLOCK_JACOBI, COORDINATE, TWO_LEVEL
+from .krylov import ADDITIVE, BLOCK_JACOBI, COORDINATE, TWO_LEVEL, V_CYCLE
 from .newton_krylov import gauss_newton_pcg
 from .normal_equations import NormalEquations
 
-PRECONDITIONERS = {"coordinate": COORDINATE, "block_jacobi": BLOCK_JACOBI, "two_level": TWO_LEVEL, "additive": ADDITIVE}
+PRECONDITIONERS = {"coordinate": COORDINATE, "block_jacobi": BLOCK_JACOBI, "two_level": TWO_LEVEL, "additive": ADDITIVE,
+                   "v_cycle": V_CYCLE}
 
 
 @dataclass(frozen=True)
@@ -33,7 +34,8 @@ class SolverSettings:
     """How `Rig.solve` minimises E per frame.
 
     method : "pcg" (default) or "exact" (sparse Cholesky of the full system, the reference)
-    preconditioner : for "pcg": "two_level" (K_σ, node blocks, K_σ), "additive" (K_σ + node blocks),
+    preconditioner : for "pcg": "v_cycle" (node blocks, K_σ, node blocks: one triangular solve pair per
+        application), "two_level" (K_σ, node blocks, K_σ: two), "additive" (K_σ + node blocks),
         "coordinate" (K_σ only) or "block_jacobi" (node blocks only); see `krylov.py`. Only the ones with
         K_σ carry the graph-wide coupling: block Jacobi alone stalls when few nodes are constrained
     cg_iterations, cg_tolerance : CG iterations per Gauss-Newton step at most, and the relative
@@ -41,6 +43,7 @@ class SolverSettings:
     jump : for "pcg": a frame whose starting energy exceeds `jump` times the last solve's result (and
         the first solve) is solved exactly: on a big move, steps from a few CG iterations can lead into
         a worse local minimum than full steps
+    backtracks : for "pcg": halvings of a step that raised E tried before solving for a new one
     reuse_factor : for "exact": keep the numeric factor while its steps keep lowering E
     """
 
@@ -50,10 +53,11 @@ class SolverSettings:
     max_damping: float = 1e8
     reuse_factor: bool = False
     method: str = "pcg"
-    preconditioner: str = "two_level"
+    preconditioner: str = "v_cycle"
     cg_iterations: int = 8
-    cg_tolerance: float = 5e-2
+    cg_tolerance: float = 0.1
     jump: float = 10.0
+    backtracks: int = 2
 
     def __post_init__(self):
         if self.method not in ("pcg", "exact"):
@@ -99,7 +103,9 @@ class GaussNewton:
         self._linear_data = None
         self._factored = False
         self._diag = None
-        self._lam = None
+        # damping carried over between frames, one per path: the scale suited to a full step and to
+        # a truncated one differ
+        self._lam = self._lam_exact = None
 
     @property
     def factor(self) -> ReusedCholesky:
@@ -142,15 +148,21 @@ class GaussNewton:
                 x0, e0 = guess, e_guess
         if self.settings.method == "exact":
             return self._solve_exact(x0, targets, active)
-        if self._last_energy is None or e0 > self.settings.jump * max(self._last_energy, self.energy_floor):
+        if self._last_energy is None:
             report = self._solve_exact(x0, targets, active)
+        elif e0 > self.settings.jump * max(self._last_energy, self.energy_floor):
+            # far from the warm start (a skeleton teleporting): twice the steps, else the frame can end
+            # well above the minimum of the exact method, whose damping carries over from frame to frame
+            report = self._solve_exact(x0, targets, active, 2 * self.settings.max_iterations)
         else:
             report = self._solve_pcg(x0, targets, active)
         self._last_energy = report.energy
         return report
 
-    def _solve_exact(self, x0: np.ndarray, targets: np.ndarray, active: np.ndarray) -> SolveReport:
+    def _solve_exact(self, x0: np.ndarray, targets: np.ndarray, active: np.ndarray,
+                     max_iterations: int | None = None) -> SolveReport:
         s = self.settings
+        max_iterations = max_iterations or s.max_iterations
         sysm = self.system
         linear = self._linear(active)
         x = x0.copy()
@@ -158,11 +170,11 @@ class GaussNewton:
         energy = sysm.energy(parts)
         energies = [energy]
         # damping carries over from the previous frame: its scale is a property of the rig
-        lam = self._lam if self._lam is not None else s.initial_damping
+        lam = self._lam_exact if self._lam_exact is not None else s.initial_damping
         nu = 2.0
         iterations = factorisations = accepted = 0
         reusable = s.reuse_factor and self._factored
-        while iterations < s.max_iterations and energy > self.energy_floor:
+        while iterations < max_iterations and energy > self.energy_floor:
             data, grad = sysm.system(x, parts, None if reusable else linear, active)
             if data is not None:
                 self._diag = data[sysm.diag_pos]
@@ -173,7 +185,7 @@ class GaussNewton:
             if grad @ (grad / np.maximum(diag, floor)) <= 1e-2 * s.relative_tolerance * energy:
                 break
             stepped = False
-            while iterations < s.max_iterations:
+            while iterations < max_iterations:
                 iterations += 1
                 reused = reusable
                 try:
@@ -225,7 +237,7 @@ class GaussNewton:
                     break
             if not stepped or decrease <= s.relative_tolerance * energies[-2]:
                 break
-        self._lam = min(max(lam, s.initial_damping), 1e3)
+        self._lam_exact = min(max(lam, s.initial_damping), 1e3)
         return SolveReport(x=x, energy=energy, iterations=iterations, accepted=accepted,
                            energies=tuple(energies), factorisations=factorisations)
 
@@ -245,7 +257,8 @@ class GaussNewton:
             np.ascontiguousarray(targets, dtype=np.float64), np.ascontiguousarray(active, dtype=np.float64),
             sysm.bridges, w.rot, w.reg, w.con, w.rig, PRECONDITIONERS[s.preconditioner], fac, k[0], k[1], k[2],
             k_blocks, k[2][self.split.diag_pos], s.max_iterations, s.relative_tolerance, s.cg_iterations,
-            s.cg_tolerance, lam, s.max_damping, self.energy_floor, self._rot, self._rig, self._node_fac, energies)
+            s.cg_tolerance, lam, s.max_damping, self.energy_floor, self._rot, self._rig, self._node_fac, energies,
+            s.backtracks)
         self._lam = min(max(lam, s.initial_damping), 1e3)
         return SolveReport(x=x, energy=energy, iterations=iterations, accepted=accepted,
                            energies=tuple(energies[:count]), factorisations=self.split.factorisations - before,

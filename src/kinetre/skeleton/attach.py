@@ -8,6 +8,7 @@ front of an arm attaches to the front of the mesh's arm.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import lru_cache
 
 import numpy as np
 from numba import njit
@@ -192,18 +193,23 @@ def bone_rotations(bind: Skeleton, frame: Skeleton, reference: np.ndarray) -> np
     minimal rotation alone. Under a rigid motion of the whole skeleton every bone gets exactly that
     rotation.
     """
-    bones = np.asarray(frame.model.bones, dtype=np.int64)
+    bones, parent_bones = _bone_arrays(frame.model)
     return _bone_rotations(np.asarray(bind.positions, dtype=np.float64), np.asarray(frame.positions, dtype=np.float64),
                            np.asarray(frame.tracked, dtype=np.bool_), bones, np.asarray(reference, dtype=np.int64),
-                           _parent_bones(frame.model))
+                           parent_bones)
 
 
-def _parent_bones(model) -> np.ndarray:
-    """Per bone, the bone ending at its first joint (-1 at the root)."""
+@lru_cache(maxsize=16)
+def _bone_arrays(model) -> tuple[np.ndarray, np.ndarray]:
+    """The model's bones (B, 2) int64 and per bone the bone ending at its first joint (-1 at the root);
+    once per model, not per frame."""
     bones = np.asarray(model.bones, dtype=np.int64)
     by_child = np.full(len(model.joints), -1, np.int64)
     by_child[bones[:, 1]] = np.arange(len(bones))
-    return by_child[bones[:, 0]]
+    bones.setflags(write=False)
+    parents = by_child[bones[:, 0]]
+    parents.setflags(write=False)
+    return bones, parents
 
 
 @njit(cache=True)
@@ -292,31 +298,46 @@ def constraint_targets(att: SkeletonAttachment, frame: Skeleton) -> tuple[np.nda
     tracked = np.asarray(frame.tracked, dtype=np.bool_)
     rot = bone_rotations(att.bind, frame, att.twist_reference) if (att.bone >= 0).any() else np.zeros((0, 3, 3))
     return _targets(att.joint, att.bone, att.offset, att.constraints.points, np.asarray(att.bind.positions, np.float64),
-                    pos, tracked, np.asarray(frame.model.bones, dtype=np.int64), rot)
+                    pos, tracked, _bone_arrays(frame.model)[0], rot)
 
 
 @njit(cache=True)
 def _targets(joint, bone, offset, points, bind, pos, tracked, bones, rot):
+    # scalar arithmetic throughout: small temporary arrays per constraint cost more than the maths
     n = joint.shape[0]
     q = np.zeros((n, 3))
     ok = np.zeros(n, np.bool_)
     for i in range(n):
         if joint[i] >= 0:
-            q[i] = pos[joint[i]]
+            for a in range(3):
+                q[i, a] = pos[joint[i], a]
             ok[i] = tracked[joint[i]]
         elif bone[i] >= 0:
             p, c = bones[bone[i], 0], bones[bone[i], 1]
-            d0 = bind[c] - bind[p]
-            d1 = pos[c] - pos[p]
-            l0 = np.sqrt(d0 @ d0)
-            l1 = np.sqrt(d1 @ d1)
+            l0 = 0.0
+            l1 = 0.0
+            axial = 0.0
+            for a in range(3):
+                d0 = bind[c, a] - bind[p, a]
+                d1 = pos[c, a] - pos[p, a]
+                l0 += d0 * d0
+                l1 += d1 * d1
+                axial += offset[i, a] * d0
+            l0 = np.sqrt(l0)
+            l1 = np.sqrt(l1)
             good = tracked[p] and tracked[c] and l1 > 1e-9
-            u0 = d0 / l0
-            axial = offset[i] @ u0
-            scaled = offset[i] - axial * u0 + (axial * (l1 / l0 if good else 1.0)) * u0
-            q[i] = pos[p] + rot[bone[i]] @ scaled
+            axial /= l0
+            # the offset with its component along the bone scaled by the bone's length ratio
+            grow = axial * ((l1 / l0 if good else 1.0) - 1.0) / l0
+            r = rot[bone[i]]
+            for a in range(3):
+                s = pos[p, a]
+                for b in range(3):
+                    s += r[a, b] * (offset[i, b] + grow * (bind[c, b] - bind[p, b]))
+                q[i, a] = s
             ok[i] = good
         ok[i] = ok[i] and np.isfinite(q[i, 0]) and np.isfinite(q[i, 1]) and np.isfinite(q[i, 2])
         if not ok[i]:
-            q[i] = points[i]
+            for a in range(3):
+                q[i, a] = points[i, a]
     return q, ok
