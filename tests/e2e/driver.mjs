@@ -30,6 +30,7 @@ function launch(audio) {
 
 async function open(browser, name) {
   const page = await browser.newPage({ viewport: { width: 720, height: 540 }, acceptDownloads: true });
+  page.setDefaultTimeout(120000); // SwiftShader on a loaded CI machine: a page busy tracking answers actions slowly
   page.on('pageerror', (e) => log(`${name}: page error`, { message: String(e) }));
   page.on('console', (m) => { if (m.type() === 'error') log(`${name}: console error`, { message: m.text() }); });
   await page.goto(config.url + (config.query ?? ''));
@@ -80,6 +81,7 @@ async function startCamera(page, name) {
 }
 
 async function possess(page, name, subset = null) {
+  await page.bringToFront(); // the other user's page was last in front
   if (subset) await page.selectOption('#subset', subset);
   await page.keyboard.press('f');
   await page.waitForTimeout(300);
