@@ -52,3 +52,20 @@ def test_tracking_recovers_the_pose_and_rejects_a_foreign_frame(spot_scene):
     assert not lost.accepted and lost.reason.startswith("lost tracking")
     strict = track_frame(volume, colors[3], depths[3], camera, previous, TrackingParams(min_fitness=0.999))
     assert not strict.accepted and "fitness" in strict.reason
+
+
+def test_depth_pyramid_averages_surfaces_but_not_across_edges_or_holes():
+    from kinetre.scan.track import _pyrdown_depth
+    # a ramp: the symmetric 5x5 Gaussian of a linear function is its value at the centre pixel (2y, 2x)
+    y, x = np.mgrid[0:24, 0:32]
+    ramp = (1.0 + 0.002 * x + 0.001 * y).astype(np.float32)
+    half = _pyrdown_depth(ramp, np.float32(0.14))
+    assert half.shape == (12, 16)
+    np.testing.assert_allclose(half[1:-1, 1:-1], ramp[2:-2:2, 2:-2:2], atol=1e-5)
+    # a 1 m step between two surfaces stays a step (no pixel in between), and a pixel without depth stays empty
+    step = np.where(x < 16, 1.0, 2.0).astype(np.float32)
+    step[10, 10] = 0.0
+    half = _pyrdown_depth(step, np.float32(0.14))
+    assert set(np.unique(half)) == {0.0, 1.0, 2.0}
+    assert half[5, 5] == 0.0 and np.count_nonzero(half == 0.0) == 1
+    assert np.all(half[:, 8:] == 2.0) and np.all(half[:, :8][half[:, :8] > 0] == 1.0)

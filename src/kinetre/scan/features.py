@@ -103,9 +103,9 @@ def feature_motion(color_a: np.ndarray, depth_a: np.ndarray, color_b: np.ndarray
 def match(a: Features, b: Features, inlier_distance: float = 0.02, hypotheses: int = 256, min_inliers: int = 12,
           seed: int = 0) -> FeatureMotion | None:
     """Rigid motion taking the points of `a` onto those of `b` by RANSAC over mutual descriptor matches."""
-    cv2 = _cv2()
     if len(a.descriptors) < min_inliers or len(b.descriptors) < min_inliers:
         return None
+    cv2 = _cv2()
     pairs = cv2.BFMatcher(cv2.NORM_HAMMING, crossCheck=True).match(a.descriptors, b.descriptors)
     if len(pairs) < min_inliers:
         return None
@@ -113,8 +113,8 @@ def match(a: Features, b: Features, inlier_distance: float = 0.02, hypotheses: i
     pb = b.points[[m.trainIdx for m in pairs]]
     samples = np.random.default_rng(seed).integers(0, len(pa), (hypotheses, 3))
     candidates = kabsch(pa[samples], pb[samples])  # (K, 4, 4), degenerate samples just score badly
-    moved = np.einsum("kij,nj->kni", candidates[:, :3, :3], pa) + candidates[:, None, :3, 3]
-    inlier = np.linalg.norm(moved - pb[None], axis=2) < inlier_distance
+    moved = candidates[:, :3, :3] @ pa.T + candidates[:, :3, 3:]  # (K, 3, N)
+    inlier = np.sum((moved - pb.T[None]) ** 2, axis=1) < inlier_distance ** 2
     keep = inlier[int(np.argmax(inlier.sum(axis=1)))]
     for _ in range(2):  # refit on the consensus, then re-collect it
         if np.count_nonzero(keep) < min_inliers:

@@ -74,6 +74,8 @@ class _Fused:
     fitness: list = field(default_factory=list)  # agreement of each tracked, accepted frame with the model
     loops: int = 0  # loop closures that survived the pose-graph optimisation
     moved: float = 0.0  # largest change of a camera position by the optimisation (metres)
+    closing_cpu: float = 0.0  # CPU seconds of loop closure and the second fusion (the rest is per frame)
+    tracked: list = field(default_factory=list)  # the poses as tracked, before loop closure moved them
 
 
 def fuse_sequence(sequence: RGBDSequence, volume: TSDFVolume, params: TrackingParams, *,
@@ -126,11 +128,14 @@ def fuse_sequence(sequence: RGBDSequence, volume: TSDFVolume, params: TrackingPa
         if fused.first_view is None:
             fused.first_view = _world_points(depth, camera, pose)
     bar.close()
+    fused.tracked = list(fused.poses)
     if close_loops and len(keyframes) > 3 and tracking_model is None:
+        start = time.process_time()
         tracked = {i: fused.poses[i] for i in range(len(fused.poses)) if fused.accepted[i]}
         loops = loop_edges(tracked, keyframes, _dense_refiner(sequence, params))
         if loops:
             _refuse(sequence, volume, fused, optimise(tracked, edges + loops), loops, progress, label)
+        fused.closing_cpu = time.process_time() - start
     return fused
 
 
@@ -199,14 +204,23 @@ def scan(frames: str | Path, out_path: str | Path, *, segment: str | None = None
     The mesh is in metres, +Y up: the first camera's frame turned upright, or with `segment="plane"` the plane
     is y = 0 and the object is centred above the origin. The plane is the dominant one in the first fused
     view (SPEC §5: "from the current view"), which is where a scan of an object on a table starts.
-    threads : OpenMP threads for Open3D's kernels. One is the default because on a shared CPU OpenMP's
-              spin-waiting threads made each odometry call 10-50x slower in our measurements.
+    threads : OpenMP threads for Open3D's kernels (and OpenCV's pool). One is the default because on a shared
+              CPU OpenMP's spin-waiting threads made each odometry call 10-50x slower in our measurements.
     """
     from threadpoolctl import threadpool_limits
-    with threadpool_limits(limits=max(1, int(threads)), user_api="openmp"):
-        return _scan(frames, out_path, segment=segment, before=before, voxel=voxel, intrinsics=intrinsics,
-                     camera=camera, depth_scale=depth_scale, depth_max=depth_max, target_faces=target_faces,
-                     min_component=min_component, tracking=tracking, progress=progress, seed=seed)
+
+    from .features import _cv2
+    cv2 = _cv2()
+    threads = max(1, int(threads))
+    opencv_threads = cv2.getNumThreads()
+    cv2.setNumThreads(threads)
+    try:
+        with threadpool_limits(limits=threads, user_api="openmp"):
+            return _scan(frames, out_path, segment=segment, before=before, voxel=voxel, intrinsics=intrinsics,
+                         camera=camera, depth_scale=depth_scale, depth_max=depth_max, target_faces=target_faces,
+                         min_component=min_component, tracking=tracking, progress=progress, seed=seed)
+    finally:
+        cv2.setNumThreads(opencv_threads)
 
 
 def _scan(frames, out_path, *, segment, before, voxel, intrinsics, camera, depth_scale, depth_max, target_faces,
