@@ -27,6 +27,7 @@ from pathlib import Path
 import numpy as np
 import pygltflib as gl
 import trimesh
+from numba import njit
 
 from ..deform.pose import GraphPose
 from ..errors import ExportError
@@ -124,11 +125,14 @@ def _document_json(doc: gl.GLTF2) -> bytes:
 
 
 _FIELDS: dict[type, tuple[str, ...]] = {}
+_LEAVES = (int, float, str, bool, type(None))
 
 
 def _plain(value):
     """pygltflib dataclasses (and their Attributes) → dicts and lists, without copying leaf values."""
     kind = type(value)
+    if kind in _LEAVES:
+        return value
     if kind is gl.Attributes:
         return dict(value.__dict__)
     if kind in (list, tuple):
@@ -307,13 +311,29 @@ def polar_error_bound(mesh: Mesh, graph: DeformationGraph, rotations: np.ndarray
     -------
     float, in the mesh's units.
     """
-    n = graph.node_count
-    reach = np.zeros(n)
-    dist = np.linalg.norm(mesh.vertices[:, None, :] - graph.nodes[graph.vertex_nodes], axis=2)   # (V, 4)
-    dist[graph.vertex_weights <= 0] = 0.0
-    np.maximum.at(reach, graph.vertex_nodes.ravel(), dist.ravel())
-    gap = np.linalg.norm(rotations - polar_rotations(rotations), ord=2, axis=(2, 3))            # (F, N)
+    reach = _reach(np.ascontiguousarray(mesh.vertices, dtype=np.float64), np.ascontiguousarray(graph.nodes),
+                   np.ascontiguousarray(graph.vertex_nodes), np.ascontiguousarray(graph.vertex_weights))
+    # R − Q = U (diag(s) − diag(1, 1, d)) V^T with d = sign det R: its 2-norm is max_i |s_i − e_i|
+    # (where det R = 0, s_3 = 0 and |s_3 − d| = 1 for either sign)
+    s = np.linalg.svd(rotations, compute_uv=False)                                             # (F, N, 3)
+    d = np.where(np.linalg.det(rotations) < 0, -1.0, 1.0)
+    gap = np.maximum(np.abs(s[..., :2] - 1.0).max(axis=-1), np.abs(s[..., 2] - d))            # (F, N)
     return float((gap * reach[None]).max())
+
+
+@njit(cache=True)
+def _reach(vertices, nodes, indices, weights):
+    """(N,) per node, the largest distance to a vertex it moves with a positive weight."""
+    reach = np.zeros(nodes.shape[0])
+    for v in range(vertices.shape[0]):
+        for q in range(indices.shape[1]):
+            if weights[v, q] > 0:
+                j = indices[v, q]
+                dx = vertices[v, 0] - nodes[j, 0]
+                dy = vertices[v, 1] - nodes[j, 1]
+                dz = vertices[v, 2] - nodes[j, 2]
+                reach[j] = max(reach[j], np.sqrt(dx * dx + dy * dy + dz * dz))
+    return reach
 
 
 def stretch_factors(rotations: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -342,14 +362,13 @@ def stretch_factors(rotations: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.n
     w[..., 2, :] *= dw[..., None]
     s[..., 2] *= du * dw
     cube = _proper_signed_permutations()                                   # (24, 3, 3)
+    flat = cube.reshape(24, 9)
     for k in range(1, rotations.shape[0]):
-        cu = np.einsum("nij,mjk->nmik", u[k], cube)                           # U M
-        cw = np.einsum("mji,njk->nmik", cube, w[k])                           # M^T W
-        score = np.einsum("nij,nmij->nm", u[k - 1], cu) + np.einsum("nij,nmij->nm", w[k - 1], cw)
-        best = np.argmax(score, axis=1)
-        m = cube[best]                                                        # (N, 3, 3)
-        u[k] = np.einsum("nij,njk->nik", u[k], m)
-        w[k] = np.einsum("nji,njk->nik", m, w[k])
+        # closeness <U' , U M> + <W', M^T W> = <U^T U' + W W'^T, M> (Frobenius), for all 24 M at once
+        near = u[k].transpose(0, 2, 1) @ u[k - 1] + w[k] @ w[k - 1].transpose(0, 2, 1)
+        m = cube[np.argmax(near.reshape(-1, 9) @ flat.T, axis=1)]           # (N, 3, 3)
+        u[k] = u[k] @ m
+        w[k] = m.transpose(0, 2, 1) @ w[k]
         s[k] = np.einsum("nji,nj->ni", m * m, s[k])                         # diag(M^T diag(s) M)
     return u, s, w
 

@@ -1,0 +1,72 @@
+"""Preprocessing and skinning figures (issue 9): graph + weights of a 2.77M-vertex mesh, CPU skinning of 1M
+vertices. `kinetre animate` end to end is in bench_animate.py.
+
+Prints one JSON object per line. CPU seconds (time.process_time) are the figures to compare on a shared
+machine; run on one core: OMP_NUM_THREADS=1 NUMBA_NUM_THREADS=1. Targets: graph + weights of a 2M-vertex
+mesh ≤ 2 s, skinning 1M vertices ≤ 15 ms.
+"""
+from __future__ import annotations
+
+import json
+import time
+
+import numpy as np
+
+import kinetre
+from bench_core import DATA, subdivided
+from kinetre.deform.skinning import skin_vertices
+from kinetre.graph.edges import bridge_edges, connect_components, knn_edges
+from kinetre.graph.sampling import sample_orientation_aware
+from kinetre.graph.weights import skinning_weights
+
+
+def emit(record):
+    print(json.dumps(record), flush=True)
+
+
+def cpu(fn):
+    c, t = time.process_time(), time.perf_counter()
+    out = fn()
+    return out, time.process_time() - c, time.perf_counter() - t
+
+
+def bench_graph(mesh):
+    kinetre.build_graph(kinetre.load_mesh(DATA / "meshes" / "spot.obj"), nodes=64)  # load the cached kernels
+    for nodes in (128, 256):
+        g, total, wall = cpu(lambda: kinetre.build_graph(mesh, nodes=nodes))
+        (p, n, r), t_sample, _ = cpu(lambda: sample_orientation_aware(mesh.vertices, mesh.faces, mesh.normals,
+                                                                        nodes=nodes))
+        _, t_edges, _ = cpu(lambda: bridge_edges(len(p), connect_components(p, knn_edges(p, n, 4))[0]))
+        _, t_weights, _ = cpu(lambda: skinning_weights(mesh.vertices, mesh.normals, p, n, r))
+        emit({"bench": "graph_weights", "vertices": len(mesh.vertices), "nodes": g.node_count,
+              "cpu_s": round(total, 3), "wall_s": round(wall, 3), "cpu_s_per_2M_vertices":
+              round(total * 2e6 / len(mesh.vertices), 3), "sampling_cpu_s": round(t_sample, 3),
+              "edges_cpu_s": round(t_edges, 3), "weights_cpu_s": round(t_weights, 3), "target_s_per_2M": 2.0})
+
+
+def bench_skin(mesh):
+    # 1M vertices: the mesh's own, tiled, with its graph's indices and weights
+    graph = kinetre.build_graph(mesh, nodes=256)
+    reps = int(np.ceil(1_000_000 / len(mesh.vertices)))
+    verts = np.concatenate([mesh.vertices + i for i in range(reps)])[:1_000_000]
+    idx = np.concatenate([graph.vertex_nodes] * reps)[:1_000_000]
+    w = np.concatenate([graph.vertex_weights] * reps)[:1_000_000]
+    rng = np.random.default_rng(0)
+    pose = kinetre.GraphPose(np.eye(3) + 0.1 * rng.standard_normal((graph.node_count, 3, 3)),
+                             rng.standard_normal((graph.node_count, 3)))
+    mats = pose.node_matrices(graph.nodes)
+    out = np.empty_like(verts)
+    for label, call in (("new_array", lambda: skin_vertices(verts, idx, w, mats)),
+                        ("out_buffer", lambda: skin_vertices(verts, idx, w, mats, out=out))):
+        call()
+        runs = [cpu(call)[1:] for _ in range(30)]
+        c, t = np.array(runs).T * 1e3
+        emit({"bench": "skin_1m", "vertices": len(verts), "nodes": graph.node_count, "output": label,
+              "cpu_ms_median": round(float(np.median(c)), 2), "cpu_ms_min": round(float(c.min()), 2),
+              "wall_ms_median": round(float(np.median(t)), 2), "target_ms": 15.0})
+
+
+if __name__ == "__main__":
+    arm = kinetre.load_mesh(DATA / "meshes" / "armadillo.obj")
+    bench_skin(subdivided(arm, 2))
+    bench_graph(subdivided(arm, 3))  # 2.77M vertices
