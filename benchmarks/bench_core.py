@@ -158,19 +158,23 @@ def bench_coordinate_solve(node_counts=(256, 512)):
                   int(dense.size), "cpu_us": round(best * 1e6, 1)})
 
 
-def bench_skin():
-    arm = kinetre.load_mesh(DATA / "meshes" / "armadillo.obj")
-    big = subdivided(arm, 2)
-    reps = int(np.ceil(1_000_000 / len(big.vertices)))
-    verts = np.concatenate([big.vertices + i for i in range(reps)])[:1_000_000]
-    graph = kinetre.build_graph(big, nodes=256)
-    idx = np.concatenate([graph.vertex_nodes] * reps)[:1_000_000]
-    w = np.concatenate([graph.vertex_weights] * reps)[:1_000_000]
+def skinning_case(mesh: kinetre.Mesh, count: int = 1_000_000):
+    """`count` vertices (the mesh's, tiled) with its 256-node graph's indices and weights, and the node matrices
+    of a random pose: (vertices, indices, weights, matrices, graph)."""
+    graph = kinetre.build_graph(mesh, nodes=256)
+    reps = int(np.ceil(count / len(mesh.vertices)))
+    verts = np.concatenate([mesh.vertices + i for i in range(reps)])[:count]
+    idx = np.concatenate([graph.vertex_nodes] * reps)[:count]
+    w = np.concatenate([graph.vertex_weights] * reps)[:count]
     rng = np.random.default_rng(0)
     pose = kinetre.GraphPose(np.eye(3) + 0.1 * rng.standard_normal((graph.node_count, 3, 3)),
                              rng.standard_normal((graph.node_count, 3)))
+    return verts, idx, w, pose.node_matrices(graph.nodes), graph
+
+
+def bench_skin():
     from kinetre.deform.skinning import skin_vertices
-    mats = pose.node_matrices(graph.nodes)
+    verts, idx, w, mats, _ = skinning_case(subdivided(kinetre.load_mesh(DATA / "meshes" / "armadillo.obj"), 2))
     skin_vertices(verts[:10], idx[:10], w[:10], mats)
     times = []
     for _ in range(10):

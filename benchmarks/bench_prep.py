@@ -13,7 +13,7 @@ import time
 import numpy as np
 
 import kinetre
-from bench_core import DATA, subdivided
+from bench_core import DATA, skinning_case, subdivided
 from kinetre.deform.skinning import skin_vertices
 from kinetre.graph.edges import bridge_edges, connect_components, knn_edges
 from kinetre.graph.sampling import sample_orientation_aware
@@ -45,16 +45,7 @@ def bench_graph(mesh):
 
 
 def bench_skin(mesh):
-    # 1M vertices: the mesh's own, tiled, with its graph's indices and weights
-    graph = kinetre.build_graph(mesh, nodes=256)
-    reps = int(np.ceil(1_000_000 / len(mesh.vertices)))
-    verts = np.concatenate([mesh.vertices + i for i in range(reps)])[:1_000_000]
-    idx = np.concatenate([graph.vertex_nodes] * reps)[:1_000_000]
-    w = np.concatenate([graph.vertex_weights] * reps)[:1_000_000]
-    rng = np.random.default_rng(0)
-    pose = kinetre.GraphPose(np.eye(3) + 0.1 * rng.standard_normal((graph.node_count, 3, 3)),
-                             rng.standard_normal((graph.node_count, 3)))
-    mats = pose.node_matrices(graph.nodes)
+    verts, idx, w, mats, graph = skinning_case(mesh)  # 1M vertices: the mesh's own, tiled
     out = np.empty_like(verts)
     for label, call in (("new_array", lambda: skin_vertices(verts, idx, w, mats)),
                         ("out_buffer", lambda: skin_vertices(verts, idx, w, mats, out=out))):
