@@ -9,10 +9,10 @@ blocks (E_rot, Eq. 3) and bridge blocks (E_rig's R_kᵀR_j − I, Eq. 7) are den
 
 Preconditioners (see `_precondition`): the coordinate solve S = (K + σ I_R)⁻¹ per coordinate (one sparse
 factor for the rig, three right-hand sides), exact per-node 12×12 blocks B (block Jacobi), and their
-symmetric multiplicative combinations: B · S · B (v-cycle, the default: the node blocks smooth, the
-factor carries the graph-wide coupling; one pair of triangular solves per application) and S · B · S
-(two-level: two pairs, about as many CG iterations). The node blocks carry the rotation stiffness the
-shift σ only averages. Where such a product loses definiteness (far from rotations) CG restarts with
+symmetric multiplicative combinations S · B · S (two-level, the default: the factor carries the
+graph-wide coupling, the node blocks the rotation stiffness the shift σ only averages) and B · S · B
+(v-cycle: one pair of triangular solves per application instead of two, as many CG iterations at 256
+nodes and two skeletons, twice as many at 512). Where such a product loses definiteness (far from rotations) CG restarts with
 the additive S + B. Since K_σ S r = r, the residual after a coordinate solve needs only the node and
 bridge blocks (`_after_coordinate_solve`), not a pass over K.
 """
