@@ -105,18 +105,21 @@ def cpu_use(pids: dict) -> dict:
 
 
 class Viewer:
-    """A page that only watches: records (seq, t_source, received ms) per transform block."""
+    """A page that only watches: records (seq, t_source, received ms) per transform block.
+
+    Its WebSocket offers permessage-deflate as browsers do; the server decides whether to use it.
+    """
 
     def __init__(self, url: str):
         self.url, self.blocks, self.stats, self.ws = url, [], None, None
 
     async def run(self, connected: asyncio.Event | None = None):
-        async with connect(self.url, max_size=1 << 22, compression=None) as ws:
+        async with connect(self.url, max_size=1 << 22) as ws:
             self.ws = ws
             async for data in ws:
                 if isinstance(data, bytes):
-                    _, seq, _, _, t_source, _ = HEADER.unpack_from(data)
-                    self.blocks.append((seq, t_source, time.time() * 1000))
+                    _, seq, _, _, t_source, t_out = HEADER.unpack_from(data)
+                    self.blocks.append((seq, t_source, time.time() * 1000, t_out))
                 elif data.startswith('{"type": "stats"'):
                     self.stats = json.loads(data)
 
@@ -139,7 +142,7 @@ class Capture(Viewer):
         self.state = None
 
     async def run(self, connected=None):
-        async with connect(self.url, max_size=1 << 22, compression=None) as ws:
+        async with connect(self.url, max_size=1 << 22) as ws:
             self.ws = ws
             async for data in ws:
                 if isinstance(data, bytes):
@@ -231,14 +234,20 @@ async def load(base: str, token: str | None, frames, pids: dict, captures=CAPTUR
         task.cancel()
 
     stamps = set(caps[0].stamps) | set(caps[1].stamps)
-    latency, solved = [], set()
+    latency, solving, delivery, solved = [], [], [], set()
     for v, m in zip(views, mark):
-        for seq, t_source, got in v.blocks[m:]:
+        for seq, t_source, got, t_out in v.blocks[m:]:
             if t_source in stamps:
                 latency.append(got - t_source)
+                solving.append(t_out - t_source)
+                delivery.append(got - t_out)
                 if v is views[0]:
                     solved.add(seq)
     lat = np.asarray(latency if latency else [float("nan")])
+
+    def median_p99(ms):
+        ms = np.asarray(ms if ms else [float("nan")])
+        return [round(float(np.median(ms)), 1), round(float(np.percentile(ms, 99)), 1)]
     received = sum(s["received"] for s in cap_stats)
     sent = sum(c.sent for c in caps)
     scene_frames = sum(u["frames"] for u in state["users"])
@@ -247,6 +256,9 @@ async def load(base: str, token: str | None, frames, pids: dict, captures=CAPTUR
         "captures": captures, "viewers": viewers, "nodes": state["mesh"]["nodes"], "seconds": seconds,
         "latency_median_ms": round(float(np.median(lat)), 2), "latency_p99_ms": round(float(np.percentile(lat, 99)), 2),
         "latency_samples": int(lat.size),
+        # the same latency in two parts, at the scene's publish time t_out: capture → solved and published
+        # (waiting for the scene, the solve) and published → viewer (the fan-out, and this generator's own delay)
+        "latency_split_ms": {"capture_to_published": median_p99(solving), "published_to_viewer": median_p99(delivery)},
         "solve_hz": round(len(solved) / seconds, 1), "solve_ms_median": state["solve_ms"],
         "solve_cpu_ms_median": state.get("solve_cpu_ms"),
         "frames_sent": sent,
