@@ -35,11 +35,14 @@ from kinetre.scan.track import TrackingParams, track_frame
 DATA = Path(__file__).resolve().parents[1] / ".." / "shared" / "data"
 VOXELS = (0.02, 0.01, 0.006)
 REPEATS = 2  # passes over the 5 frames (a new model each pass)
+DEFAULT = "odometry at 320x240, up to (10, 10) iterations until settled, scored at 160x120"
 DESIGNS = {
     # issue 10's tracker: odometry iterating at 640x480 (3 at 320x240, 6 at 640x480), scored at 320x240
-    "odometry at 640x480": TrackingParams(odometry_iterations=(0, 3, 6), odometry_width=640, score_width=320),
-    "odometry at 320x240 (6, 4), scored at 160x120": TrackingParams(),  # the default
-    "odometry at 320x240 (6, 6), scored at 160x120": TrackingParams(odometry_iterations=(6, 6)),
+    "odometry at 640x480": TrackingParams(odometry_iterations=(0, 3, 6), odometry_tolerance=1e-6,
+                                          odometry_width=640, score_width=320),
+    "odometry at 320x240, fixed (6, 4) iterations, scored at 160x120":
+        TrackingParams(odometry_iterations=(6, 4), odometry_tolerance=1e-6),
+    DEFAULT: TrackingParams(),
 }
 STAGES = {  # stage: functions (file name suffix, function name) whose cumulative CPU time it is
     "read": [("frames.py", "read_frame")],
@@ -115,7 +118,7 @@ def stages(folder: Path) -> dict:
     profile.disable()
     table = pstats.Stats(profile).stats  # (file, line, name) -> (calls, primitive, tottime, cumtime, callers)
     total = sum(row[2] for row in table.values())
-    record = {"bench": "scan_stages", "design": "odometry at 320x240 (6, 4), scored at 160x120", "threads": 1,
+    record = {"bench": "scan_stages", "design": DEFAULT, "threads": 1,
               "frames": len(sequence), "total_ms": round(total / len(sequence) * 1000, 1)}
     for stage, functions in STAGES.items():
         cumulative = sum(row[3] for (path, _, name), row in table.items()
