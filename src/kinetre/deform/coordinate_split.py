@@ -151,9 +151,9 @@ class CoordinateSplit:
             inverse_diagonal = 1.0 / m.diagonal()
             m = keep(m, k=-1 if keep is tril else 1, format="csr")
             m.sort_indices()
-            # a preconditioner needs no more than float32: half the memory traffic of the triangular solves
-            out += [m.indptr.astype(np.int32), m.indices.astype(np.int32), m.data.astype(np.float32),
-                    inverse_diagonal]
+            # float64 (float32 is no faster in the row-gather solves): the residual shortcuts of `krylov`
+            # rely on K_σ S r = r
+            out += [m.indptr.astype(np.int32), m.indices.astype(np.int32), m.data, inverse_diagonal]
         return tuple(out) + (row_perm.astype(np.int32), col_perm.astype(np.int32), self.shift)
 
 

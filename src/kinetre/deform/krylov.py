@@ -233,12 +233,13 @@ def _coordinate_solve(lp, li, lx, ld, up, ui, ux, ud, row_perm, col_perm, r, out
 
 
 @njit(cache=True)
-def _precondition(kind, fac, kp, ki, kx, rot, rig, bridges, damp, node_fac, r, z, t1, t2, work):
-    """z = M⁻¹ r for the chosen preconditioner (t1, t2, work: scratch)."""
+def _precondition(kind, fac, kp, ki, kx, rot, rig, bridges, damp, node_fac, r, z, hz, t1, t2, work):
+    """z = M⁻¹ r for the chosen preconditioner (t1, t2, work: scratch). Returns whether it also wrote
+    hz = H z (two-level: it comes almost free, see below), sparing CG its own product with H."""
     lp, li, lx, ld, up, ui, ux, ud, row_perm, col_perm, shift = fac
     if kind == BLOCK_JACOBI:
         _node_solve(node_fac, r, z)
-        return
+        return False
     if kind == V_CYCLE:  # z ← B r, z ← z + S (r − H z), z ← z + B (r − H z)
         _node_solve(node_fac, r, z)
         _hessian_times(kp, ki, kx, rot, rig, bridges, damp, shift, z, t1)
@@ -249,15 +250,15 @@ def _precondition(kind, fac, kp, ki, kx, rot, rig, bridges, damp, node_fac, r, z
         _node_solve(node_fac, t1, t2)
         for i in range(r.shape[0]):
             z[i] += t2[i]
-        return
+        return False
     _coordinate_solve(lp, li, lx, ld, up, ui, ux, ud, row_perm, col_perm, r, z, work)
     if kind == COORDINATE:
-        return
+        return False
     if kind == ADDITIVE:  # z = S r + B r: positive definite whatever the pose
         _node_solve(node_fac, r, t2)
         for i in range(r.shape[0]):
             z[i] += t2[i]
-        return
+        return False
     # symmetric multiplicative: z ← S r, z ← z + B (r − H z), z ← z + S (r − H z)
     t2[:] = z
     z[:] = 0.0
@@ -265,12 +266,16 @@ def _precondition(kind, fac, kp, ki, kx, rot, rig, bridges, damp, node_fac, r, z
     _node_solve(node_fac, t1, t2)
     for i in range(r.shape[0]):
         z[i] += t2[i]
-    _hessian_times(kp, ki, kx, rot, rig, bridges, damp, shift, z, t1)
+    _hessian_times(kp, ki, kx, rot, rig, bridges, damp, shift, z, hz)
     for i in range(r.shape[0]):
-        t1[i] = r[i] - t1[i]
+        t1[i] = r[i] - hz[i]
     _coordinate_solve(lp, li, lx, ld, up, ui, ux, ud, row_perm, col_perm, t1, t2, work)
+    # H (z + t2) = H z + K_σ t2 + (H − K_σ) t2 = hz + t1 + local part
     for i in range(r.shape[0]):
         z[i] += t2[i]
+        hz[i] += t1[i]
+    _local_times(rot, rig, bridges, damp, shift, t2, hz)
+    return True
 
 
 @njit(cache=True)
@@ -289,13 +294,15 @@ def _after_coordinate_solve(rot, rig, bridges, damp, shift, z, residual, step):
 def pcg(kind, fac, kp, ki, kx, rot, rig, bridges, damp, node_fac, b, max_iterations, tolerance):
     """Solve H x = b approximately from x = 0: stops after `max_iterations` or when ‖r‖ ≤ tolerance ‖b‖.
 
-    Returns (x, iterations, converged): `converged` says the residual reached the tolerance. Every iterate lowers the quadratic model ½ xᵀHx − bᵀx, so even one
-    iteration is a descent direction for the energy.
+    Returns (x, iterations, converged): `converged` says the residual reached the tolerance. Every
+    iterate lowers the quadratic model ½ xᵀHx − bᵀx, so even one iteration is a descent direction for
+    the energy.
     """
     n = b.shape[0]
     x = np.zeros(n)
     r = b.copy()
     z = np.empty(n)
+    hz = np.empty(n)
     p = np.empty(n)
     hp = np.empty(n)
     t1 = np.empty(n)
@@ -304,8 +311,10 @@ def pcg(kind, fac, kp, ki, kx, rot, rig, bridges, damp, node_fac, b, max_iterati
     bnorm = np.sqrt(b @ b)
     if bnorm == 0.0:
         return x, 0, True
-    _precondition(kind, fac, kp, ki, kx, rot, rig, bridges, damp, node_fac, r, z, t1, t2, work)
+    known = _precondition(kind, fac, kp, ki, kx, rot, rig, bridges, damp, node_fac, r, z, hz, t1, t2, work)
     p[:] = z
+    if known:  # hp = H p without a pass over K: H z from the preconditioner, H p by the same recurrence as p
+        hp[:] = hz
     rz = r @ z
     it = 0
     while it < max_iterations:
@@ -313,10 +322,13 @@ def pcg(kind, fac, kp, ki, kx, rot, rig, bridges, damp, node_fac, b, max_iterati
             # far from rotations E_rot's blocks outgrow 2 (K + σ I) and the multiplicative form can lose
             # definiteness: restart from x with the additive form, which cannot
             kind = ADDITIVE
-            _precondition(kind, fac, kp, ki, kx, rot, rig, bridges, damp, node_fac, r, z, t1, t2, work)
+            known = _precondition(kind, fac, kp, ki, kx, rot, rig, bridges, damp, node_fac, r, z, hz, t1, t2,
+                                  work)
             p[:] = z
             rz = r @ z
-        _hessian_times(kp, ki, kx, rot, rig, bridges, damp, fac[10], p, hp)
+        if not known:
+            _hessian_times(kp, ki, kx, rot, rig, bridges, damp, fac[10], p, hp)
+            known = True
         php = p @ hp
         if not (php > 0.0) or not (rz > 0.0):
             break
@@ -326,13 +338,18 @@ def pcg(kind, fac, kp, ki, kx, rot, rig, bridges, damp, node_fac, b, max_iterati
         it += 1
         if np.sqrt(r @ r) <= tolerance * bnorm or it >= max_iterations:
             break
-        _precondition(kind, fac, kp, ki, kx, rot, rig, bridges, damp, node_fac, r, z, t1, t2, work)
+        fresh = _precondition(kind, fac, kp, ki, kx, rot, rig, bridges, damp, node_fac, r, z, hz, t1, t2, work)
         rz_new = r @ z
         if not (rz_new > 0.0):
             rz = rz_new
+            known = False
             continue
         beta = rz_new / rz
         rz = rz_new
         p *= beta
         p += z
+        known = fresh
+        if known:
+            hp *= beta
+            hp += hz
     return x, it, np.sqrt(r @ r) <= tolerance * bnorm
