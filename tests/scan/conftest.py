@@ -21,8 +21,7 @@ def spot_scene():
     scene = synthetic.spot_on_plane()
     poses = synthetic.orbit(FRAMES, arc_degrees=ARC)
     k = synthetic.camera_matrix(WIDTH, HEIGHT)
-    colors, depths, masks = synthetic.render(scene, poses, k, WIDTH, HEIGHT, noise=True, seed=1)
-    _, exact, _ = synthetic.render(scene, poses, k, WIDTH, HEIGHT, noise=False)
+    colors, depths, exact, masks = synthetic.render_with_exact(scene, poses, k, WIDTH, HEIGHT, noise=True, seed=1)
     return scene, poses, k, colors, depths, exact, masks
 
 

@@ -191,6 +191,13 @@ def render(scene: Scene, poses: np.ndarray, k: np.ndarray, width: int, height: i
     Noise: axial Gaussian sigma(z) = 1.2 mm + 1.9 mm (z - 0.4 m)^2 (Nguyen et al. 2012, Kinect v1), then
     millimetre quantisation as in 16-bit depth PNGs.
     """
+    colors, depths, _, masks = render_with_exact(scene, poses, k, width, height, noise, seed)
+    return colors, depths, masks
+
+
+def render_with_exact(scene: Scene, poses: np.ndarray, k: np.ndarray, width: int, height: int, noise: bool = True,
+                      seed: int = 0) -> tuple[list, list, list, list]:
+    """`render`'s colour, depth and mask, and the depth without noise (quantised alike), from one ray cast."""
     rs = o3d.t.geometry.RaycastingScene()
     object_id = -1
     if len(scene.object_faces):
@@ -202,7 +209,7 @@ def render(scene: Scene, poses: np.ndarray, k: np.ndarray, width: int, height: i
     # RaycastingScene shoots through pixel corners + 0.5; shift the centre so pixel u sees (u - cx) / fx.
     k_rays = k.copy()
     k_rays[:2, 2] += 0.5
-    colors, depths, masks = [], [], []
+    colors, depths, exact, masks = [], [], [], []
     for pose in poses:
         rays = rs.create_rays_pinhole(o3d.core.Tensor(k_rays), o3d.core.Tensor(np.linalg.inv(pose)), width, height)
         hit = rs.cast_rays(rays)
@@ -213,6 +220,7 @@ def render(scene: Scene, poses: np.ndarray, k: np.ndarray, width: int, height: i
         camera_points = (points - pose[:3, 3]) @ pose[:3, :3]
         depth = np.where(ok, camera_points[..., 2], 0.0)
         mask = ok & (hit["geometry_ids"].numpy() == object_id)
+        exact.append((np.round(depth * 1000.0) / 1000.0).astype(np.float32))
         if noise:
             sigma = 0.0012 + 0.0019 * (depth - 0.4) ** 2
             depth = np.where(ok, depth + rng.normal(size=depth.shape) * sigma, 0.0)
@@ -225,7 +233,7 @@ def render(scene: Scene, poses: np.ndarray, k: np.ndarray, width: int, height: i
         colors.append(np.round(color * 255).astype(np.uint8))
         depths.append(depth.astype(np.float32))
         masks.append(mask)
-    return colors, depths, masks
+    return colors, depths, exact, masks
 
 
 def write_redwood(folder: Path, colors, depths, k: np.ndarray, width: int, height: int,
@@ -299,8 +307,7 @@ def render_orbit(name: str, frames: int = 40, width: int = 640, height: int = 48
     scene = object_scene(OBJECTS[name]())
     poses = full_orbit(frames, **orbit_options)
     k = camera_matrix(width, height)
-    colors, depths, masks = render(scene, poses, k, width, height, noise=True, seed=seed)
-    _, exact, _ = render(scene, poses, k, width, height, noise=False)
+    colors, depths, exact, masks = render_with_exact(scene, poses, k, width, height, noise=True, seed=seed)
     return Orbit(scene, poses, k, width, height, colors, depths, exact, masks)
 
 

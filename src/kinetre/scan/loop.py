@@ -45,8 +45,11 @@ def information(points: np.ndarray) -> np.ndarray:
 
 
 def loop_edges(poses: dict[int, np.ndarray], features: dict[int, Features], refine, skip: int = 3) -> list[Edge]:
-    """Feature matches between keyframes at least `skip` frames apart that look the same way.
+    """Feature matches between keyframes at least `skip` frames apart that look the same way again: between
+    them the camera looked away (more than MAX_LOOP_ANGLE from the first) and came back.
 
+    Views that never parted are linked by tracking already: on the 40-frame lamp orbit matching them too took
+    2.5x the CPU time (47 closures instead of 9) for a 4.4 instead of 4.2 mm trajectory error.
     refine(a, b, guess) -> (transform (4, 4) mapping camera a into camera b, information (6, 6)) or None: the
     dense alignment that turns a feature match (about 2 mm, 0.1 degree) into a constraint as good as tracking's.
     """
@@ -55,9 +58,16 @@ def loop_edges(poses: dict[int, np.ndarray], features: dict[int, Features], refi
         keys = keys[:: int(np.ceil(len(keys) / MAX_KEYFRAMES))]
     edges = []
     cos_limit = np.cos(np.radians(MAX_LOOP_ANGLE))
+    frames = sorted(poses)
+    axes = np.array([poses[f][:3, 2] for f in frames])
+    # away[a] : the first tracked frame after keyframe a that looks more than MAX_LOOP_ANGLE away from it
+    away = {}
+    for a in keys:
+        later = np.flatnonzero((np.array(frames) > a) & (axes @ poses[a][:3, 2] < cos_limit))
+        away[a] = frames[later[0]] if len(later) else np.inf
     for a_index, a in enumerate(keys):
         for b in keys[a_index + 1:]:
-            if b - a < skip or poses[a][:3, 2] @ poses[b][:3, 2] < cos_limit:
+            if b - a < skip or b < away[a] or poses[a][:3, 2] @ poses[b][:3, 2] < cos_limit:
                 continue
             found = match(features[a], features[b], min_inliers=MIN_LOOP_INLIERS)
             if found is None:
