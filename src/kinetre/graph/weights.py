@@ -17,7 +17,7 @@ same nodes and weights as a plain search over every node.
 from __future__ import annotations
 
 import numpy as np
-from numba import njit, prange
+from numba import njit
 
 from .distance import distance_5d
 
@@ -41,6 +41,13 @@ def _insert(best_d, best_i, d, i):
         p -= 1
     best_d[p] = d
     best_i[p] = i
+
+
+@njit(cache=True)
+def _reset(best_d, best_i):
+    for q in range(best_d.shape[0]):
+        best_d[q] = np.inf
+        best_i[q] = -1
 
 
 @njit(cache=True)
@@ -94,14 +101,14 @@ def _node_grid(nodes, inv, dims):
     return head, nxt
 
 
-@njit(cache=True, parallel=True)
+@njit(cache=True)
 def _weights(vertices, vnormals, nodes, nnormals, origin, order, start, reach, ginv, gdims, out_idx, out_w):
     # vertices are raw; nodes are already shifted by origin (so are the vertices inside, as p - origin)
     head, nxt = _node_grid(nodes, ginv, gdims)
-    cubes = np.nonzero(start[1:] > start[:-1])[0]
-    for ci in prange(cubes.shape[0]):
-        c = cubes[ci]
+    for c in range(start.shape[0] - 1):
         lo_v, hi_v = start[c], start[c + 1]
+        if lo_v == hi_v:
+            continue
         # the tight box of this cube's vertices (after the same shift as in the distances) and the cone of
         # their normals (axis, cosine of the half-angle, largest length)
         lo = np.full(3, np.inf)
@@ -118,7 +125,8 @@ def _weights(vertices, vnormals, nodes, nnormals, origin, order, start, reach, g
         spread = 1.0  # cos of the half-angle
         longest = 0.0
         if length > 0:
-            axis /= length
+            for d in range(3):
+                axis[d] /= length
             for s in range(lo_v, hi_v):
                 v = order[s]
                 nv = np.sqrt(vnormals[v, 0] ** 2 + vnormals[v, 1] ** 2 + vnormals[v, 2] ** 2)
@@ -186,8 +194,19 @@ def _candidates(nodes, nnormals, lo, hi, axis, spread, longest, reach, head, nxt
                             dist[m] = g / cos
                             m += 1
                     a = nxt[a]
-    order = np.argsort(dist[:m])
-    return idx[:m][order], dist[:m][order] * _SAFE
+    # insertion sort (a cube's list is short), then the safety factor on the bounds
+    for q in range(1, m):
+        dq, iq = dist[q], idx[q]
+        p = q
+        while p > 0 and dist[p - 1] > dq:
+            dist[p] = dist[p - 1]
+            idx[p] = idx[p - 1]
+            p -= 1
+        dist[p] = dq
+        idx[p] = iq
+    for q in range(m):
+        dist[q] *= _SAFE
+    return idx[:m], dist[:m]
 
 
 @njit(cache=True, inline="always")
@@ -204,8 +223,7 @@ def _weights_one(v, vertices, vnormals, nodes, nnormals, origin, cand, bound, re
             a = seed[q]
             upper = max(upper, distance_5d(px, py, pz, vx, vy, vz, nodes[a, 0], nodes[a, 1], nodes[a, 2],
                                            nnormals[a, 0], nnormals[a, 1], nnormals[a, 2]))
-    best_d[:] = np.inf
-    best_i[:] = -1
+    _reset(best_d, best_i)
     for q in range(cand.shape[0]):
         th = min(best_d[K], upper)
         if bound[q] >= th:
@@ -225,18 +243,17 @@ def _weights_one(v, vertices, vnormals, nodes, nnormals, origin, cand, bound, re
         f = dx * vx + dy * vy + dz * vz
         if dd + 8.0 * min(e * e, f * f) <= th * th * cos * cos * _LENIENT:
             _insert(best_d, best_i, distance_5d(px, py, pz, vx, vy, vz, qx, qy, qz, nx, ny, nz), a)
-    seed[:] = best_i
+    for q in range(K + 1):
+        seed[q] = best_i[q]
     if not best_d[K] <= reach:
         # nodes beyond reach were not offered: rank every node by D, then fall back to Euclidean if D runs out
-        best_d[:] = np.inf
-        best_i[:] = -1
+        _reset(best_d, best_i)
         for a in range(n):
             d = distance_5d(px, py, pz, vx, vy, vz, nodes[a, 0], nodes[a, 1], nodes[a, 2],
                             nnormals[a, 0], nnormals[a, 1], nnormals[a, 2])
             _insert(best_d, best_i, d, a)
         if not np.isfinite(best_d[min(K, n - 1)]):
-            best_d[:] = np.inf
-            best_i[:] = -1
+            _reset(best_d, best_i)
             for a in range(n):
                 dx = px - nodes[a, 0]
                 dy = py - nodes[a, 1]
