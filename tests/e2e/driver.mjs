@@ -2,12 +2,9 @@
 // JSON object with what it measured. Run by tests/e2e/test_studio_page.py:
 //   node driver.mjs '{"scenario": "...", "url": "...", "video": "...", "audio": "...", "artifacts": "..."}'
 // The fake camera plays a person video (a y4m file), the fake microphone a WAV file, both on a loop.
-import { createRequire } from 'node:module';
-import { mkdirSync, writeFileSync } from 'node:fs';
+import { mkdirSync } from 'node:fs';
 import { join, resolve } from 'node:path';
-
-const require = createRequire(new URL('../../web/package.json', import.meta.url));
-const { chromium } = require('playwright-core');
+import { chromium, report } from './harness.mjs';
 
 const config = JSON.parse(process.argv[2]);
 const result = { scenario: config.scenario, steps: [] };
@@ -245,14 +242,4 @@ async function perf() {
 }
 
 const scenarios = { single, two, upload, smoke, perf, sample };
-try {
-  await scenarios[config.scenario]();
-  result.ok = true;
-} catch (err) {
-  result.ok = false;
-  result.error = String(err && err.stack ? err.stack : err);
-}
-result.seconds = (Date.now() - t0) / 1000;
-const text = JSON.stringify(result);
-if (config.out) writeFileSync(config.out, text);
-process.stdout.write(text + '\n');
+await report(result, () => scenarios[config.scenario](), { t0, out: config.out });

@@ -3,12 +3,9 @@
 // bone map, drive it from the (fake) webcam, and drop a fox (refused as an avatar, loaded for possession).
 // Prints one JSON object.
 //   node driver_avatar.mjs '{"url": "...", "avatar": "...", "fox": "...", "frame": {...}, "video": "...", ...}'
-import { createRequire } from 'node:module';
 import { mkdirSync } from 'node:fs';
 import { join, resolve } from 'node:path';
-
-const require = createRequire(new URL('../../web/package.json', import.meta.url));
-const { chromium } = require('playwright-core');
+import { chromium, report } from './harness.mjs';
 
 const config = JSON.parse(process.argv[2]);
 const result = { steps: [] };
@@ -28,7 +25,7 @@ const browser = await chromium.launch({ executablePath: '/usr/bin/chromium', hea
     '--disable-renderer-backgrounding', '--disable-backgrounding-occluded-windows',
     '--use-fake-ui-for-media-stream', '--use-fake-device-for-media-stream',
     `--use-file-for-fake-video-capture=${resolve(config.video)}`] });
-try {
+await report(result, async () => {
   const page = await browser.newPage({ viewport: { width: 720, height: 540 } });
   page.on('pageerror', (e) => log('page error', { message: String(e) }));
   await page.goto(config.url + '?noshadows');
@@ -85,11 +82,4 @@ try {
     null, 180000);
   result.cameraSpread = await watch();
   log('camera drives the avatar', { source: (await avatar(page)).source });
-  result.ok = true;
-} catch (err) {
-  result.ok = false;
-  result.error = String(err && err.stack ? err.stack : err);
-} finally {
-  await browser.close();
-}
-process.stdout.write(JSON.stringify(result) + '\n');
+}, { cleanup: () => browser.close() });

@@ -1,12 +1,9 @@
 // Drives the studio's face features in Debian's Chromium (playwright-core) and prints one JSON object.
 // Run by tests/e2e/test_face_page.py:  node driver_face.mjs '{"scenario": "face"|"annotate", ...}'
 // The fake camera plays a face video (a y4m made from the shared portrait, panned and rolled).
-import { createRequire } from 'node:module';
 import { mkdirSync, readFileSync, writeFileSync } from 'node:fs';
 import { join, resolve } from 'node:path';
-
-const require = createRequire(new URL('../../web/package.json', import.meta.url));
-const { chromium } = require('playwright-core');
+import { chromium, report } from './harness.mjs';
 
 const config = JSON.parse(process.argv[2]);
 const result = { scenario: config.scenario, steps: [] };
@@ -161,12 +158,4 @@ async function rate() {
 }
 
 const scenarios = { face, annotate, rate };
-try {
-  await scenarios[config.scenario]();
-  result.ok = true;
-} catch (err) {
-  result.ok = false;
-  result.error = String(err && err.stack ? err.stack : err);
-}
-result.seconds = (Date.now() - t0) / 1000;
-process.stdout.write(JSON.stringify(result) + '\n');
+await report(result, () => scenarios[config.scenario](), { t0 });

@@ -3,12 +3,9 @@
 //   node driver_network.mjs '{"url": "http://127.0.0.1:PORT/?token=…", "artifacts": "…"}'
 // Prints "READY" once the page shows the mesh (the test then kills the scene), "LOST" once the page
 // says so (the test starts a new scene), and finally one JSON object with what it saw.
-import { createRequire } from 'node:module';
 import { mkdirSync } from 'node:fs';
 import { join } from 'node:path';
-
-const require = createRequire(new URL('../../web/package.json', import.meta.url));
-const { chromium } = require('playwright-core');
+import { chromium, report } from './harness.mjs';
 
 const config = JSON.parse(process.argv[2]);
 const result = { scenario: 'scene-lost' };
@@ -22,7 +19,7 @@ const statusOf = (page) => page.evaluate(() => ({
   message: window.kinetre.state().message,
   meshId: window.kinetre.state().meshId,
 }));
-try {
+await report(result, async () => {
   const page = await browser.newPage({ viewport: { width: 480, height: 360 } });
   await page.goto(config.url);
   await page.waitForFunction(() => window.kinetre && window.kinetre.state().meshId !== null, null, { timeout: 60000 });
@@ -37,11 +34,4 @@ try {
   await page.waitForFunction(() => !document.getElementById('status').textContent.includes('scene lost')
     && window.kinetre.state().message.includes('the scene is back'), null, { timeout: 90000, polling: 100 });
   result.after = await statusOf(page);
-  result.ok = true;
-} catch (err) {
-  result.ok = false;
-  result.error = String(err && err.stack ? err.stack : err);
-} finally {
-  await browser.close();
-}
-process.stdout.write(JSON.stringify(result) + '\n');
+}, { cleanup: () => browser.close() });

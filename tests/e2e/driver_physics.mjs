@@ -3,12 +3,9 @@
 // falling, the sphere proxies shown (O), reset by key (X) and by voice ("reset" on the fake microphone),
 // dodgeball, and a recorded take replayed through the physics into a WebM. Prints one JSON object.
 //   node driver_physics.mjs '{"url": "...", "audio": "reset.wav", "artifacts": "...", "out": "video.webm"}'
-import { createRequire } from 'node:module';
 import { mkdirSync, writeFileSync } from 'node:fs';
 import { join, resolve } from 'node:path';
-
-const require = createRequire(new URL('../../web/package.json', import.meta.url));
-const { chromium } = require('playwright-core');
+import { chromium, report } from './harness.mjs';
 
 const config = JSON.parse(process.argv[2]);
 const result = { steps: [] };
@@ -132,12 +129,4 @@ async function run() {
   }
 }
 
-try {
-  await run();
-  result.ok = true;
-} catch (err) {
-  result.ok = false;
-  result.error = String(err && err.stack ? err.stack : err);
-}
-result.seconds = (Date.now() - t0) / 1000;
-process.stdout.write(JSON.stringify(result) + '\n');
+await report(result, run, { t0 });

@@ -1,18 +1,16 @@
 // The studio's joint-map entry in Debian's Chromium (playwright-core): upload a map through the panel's file
 // input, read what the page and the server then show, clear it. Prints one JSON object.
 //   node driver_rigs.mjs '{"url": "...", "map": "path/to/map.json", "bad": "path/to/bad.json", "artifacts": "..."}'
-import { createRequire } from 'node:module';
 import { mkdirSync } from 'node:fs';
 import { join } from 'node:path';
+import { chromium, report } from './harness.mjs';
 
-const require = createRequire(new URL('../../web/package.json', import.meta.url));
-const { chromium } = require('playwright-core');
 const config = JSON.parse(process.argv[2]);
 const result = { ok: false, errors: [] };
 const browser = await chromium.launch({
   executablePath: '/usr/bin/chromium', headless: true, args: ['--headless', '--no-sandbox', '--disable-gpu'],
 });
-try {
+await report(result, async () => {
   const page = await browser.newPage({ viewport: { width: 720, height: 540 } });
   page.on('pageerror', (e) => result.errors.push(String(e)));
   await page.goto(config.url + '/?noshadows');
@@ -38,10 +36,4 @@ try {
   await page.waitForFunction(() => document.querySelector('#joint-map-name').textContent === '', null,
     { timeout: 30000 });
   result.afterClear = await server();
-  result.ok = true;
-} catch (err) {
-  result.error = String(err);
-} finally {
-  await browser.close();
-}
-console.log(JSON.stringify(result));
+}, { cleanup: () => browser.close() });

@@ -1,0 +1,26 @@
+// What every browser driver shares: playwright-core from web/node_modules (it drives Debian's Chromium, no
+// browser download), and the run-and-report step: one JSON object on the last line of stdout, which
+// tests/e2e/node_driver.py reads and whose `ok` it asserts.
+import { createRequire } from 'node:module';
+import { writeFileSync } from 'node:fs';
+
+const require = createRequire(new URL('../../web/package.json', import.meta.url));
+export const { chromium } = require('playwright-core');
+
+/** Run `scenario`, mark `result` ok or record the error, then print it (and write it to `out`, if given).
+ * `cleanup` runs whatever happened (e.g. closing the browser); `t0` adds the seconds taken. */
+export async function report(result, scenario, { t0 = null, out = null, cleanup = null } = {}) {
+  try {
+    await scenario();
+    result.ok = true;
+  } catch (err) {
+    result.ok = false;
+    result.error = String(err && err.stack ? err.stack : err);
+  } finally {
+    if (cleanup) await cleanup();
+  }
+  if (t0 !== null) result.seconds = (Date.now() - t0) / 1000;
+  const text = JSON.stringify(result);
+  if (out) writeFileSync(out, text);
+  process.stdout.write(text + '\n');
+}
