@@ -296,8 +296,7 @@ class Scene:
                 self._rebuild_rig_later()
                 raise
             self.solve_ms = (self.solve_ms + [1000 * (time.perf_counter() - start)])[-60:]
-            if hasattr(self.solver, "cpu_ms"):
-                self.solve_cpu_ms = (self.solve_cpu_ms + [self.solver.cpu_ms])[-60:]
+            self.solve_cpu_ms = (self.solve_cpu_ms + [self.solver.cpu_ms])[-60:]
             self.pose = pose
             if self.recording is not None:  # on disk before any viewer sees the frame
                 self.recording.append(self.seq + 1, now_ms(), pose, {u.client: u.latest for u in users})
