@@ -30,6 +30,7 @@ from threadpoolctl import threadpool_limits
 from kinetre.scan.frames import open_sequence, read_frame
 from kinetre.scan.fuse import TSDFVolume
 from kinetre.scan.pipeline import fuse_sequence
+from kinetre.scan.recent import RecentFrames
 from kinetre.scan.track import TrackingParams, track_frame
 
 DATA = Path(__file__).resolve().parents[1] / ".." / "shared" / "data"
@@ -65,13 +66,14 @@ def run(voxel: float, threads: int, frames) -> dict:
     count = 0
     for _ in range(REPEATS):
         volume = TSDFVolume(voxel)
+        recent = RecentFrames()
         previous = None
         start, cpu_start = time.perf_counter(), time.process_time()
         for color, depth, _ in frames:
             if previous is None:
                 pose = np.eye(4)
             else:
-                result = track_frame(volume, color, depth, camera, previous)
+                result = track_frame(volume, color, depth, camera, previous, recent=recent)
                 if not result.accepted:
                     raise SystemExit(f"bench_scan: tracking lost on real frames at voxel {voxel}: {result.reason}")
                 pose = result.pose

@@ -15,6 +15,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .frames import Intrinsics
+from .recent import RecentFrames, remembered
 
 ORB_FEATURES = 1000
 # consecutive frames are matched on their strongest keypoints only: the seed needs a dozen good matches, and
@@ -56,14 +57,14 @@ class Features:
         return Features(self.descriptors[:count], self.points[:count])
 
 
-_RECENT: list = []  # (colour array, Features) of the last few frames: each frame is described once
+def frame_features(color: np.ndarray, depth: np.ndarray, camera: Intrinsics,
+                   recent: RecentFrames | None = None) -> Features:
+    """ORB keypoints of the colour image lifted to 3D with the depth (made once per frame of a scan that keeps
+    `recent`)."""
+    return remembered(recent, ("orb", color, depth, camera), lambda: _describe(color, depth, camera))
 
 
-def frame_features(color: np.ndarray, depth: np.ndarray, camera: Intrinsics) -> Features:
-    """ORB keypoints of the colour image lifted to 3D with the depth (cached for the same colour array)."""
-    for image, features in _RECENT:
-        if image is color:
-            return features
+def _describe(color: np.ndarray, depth: np.ndarray, camera: Intrinsics) -> Features:
     cv2 = _cv2()
     gray = cv2.cvtColor(np.ascontiguousarray(color), cv2.COLOR_RGB2GRAY)
     keypoints, descriptors = cv2.ORB_create(nfeatures=ORB_FEATURES).detectAndCompute(gray, None)
@@ -78,8 +79,6 @@ def frame_features(color: np.ndarray, depth: np.ndarray, camera: Intrinsics) -> 
         order = np.argsort([-k.response for k in keypoints], kind="stable")
         order = order[z[order] > 0]
         features = Features(descriptors[order], points[order])
-    _RECENT.insert(0, (color, features))
-    del _RECENT[3:]
     return features
 
 
@@ -100,13 +99,15 @@ def kabsch(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 
 
 def feature_motion(color_a: np.ndarray, depth_a: np.ndarray, color_b: np.ndarray, depth_b: np.ndarray,
-                   camera: Intrinsics, strongest: int | None = TRACKING_FEATURES, **options) -> FeatureMotion | None:
+                   camera: Intrinsics, strongest: int | None = TRACKING_FEATURES, recent: RecentFrames | None = None,
+                   **options) -> FeatureMotion | None:
     """Rigid motion from frame a to frame b (colour (H, W, 3) uint8, depth (H, W) float32 m), or None.
 
     Only the `strongest` keypoints of each frame are matched (all with None). None when fewer than
-    `min_inliers` matches agree (too little texture, or no overlap). options: `match`'s.
+    `min_inliers` matches agree (too little texture, or no overlap). recent: the scan's `RecentFrames`, if
+    any. options: `match`'s.
     """
-    a, b = frame_features(color_a, depth_a, camera), frame_features(color_b, depth_b, camera)
+    a, b = frame_features(color_a, depth_a, camera, recent), frame_features(color_b, depth_b, camera, recent)
     if strongest is not None:
         a, b = a.strongest(strongest), b.strongest(strongest)
     return match(a, b, **options)

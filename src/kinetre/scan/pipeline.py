@@ -25,6 +25,7 @@ from .loop import MAX_KEYFRAMES, Edge, information, loop_edges, optimise
 from .segment import (SPECK_JOINS, changed_voxels, cut_above_plane, cut_to_voxels, dominant_plane, focus_point,
                       remove_floaters, select_object)
 from .surface import CAMERA_TO_Y_UP, MESH_SUFFIXES, ScanMesh, decimate, orient_outward, rotation_between, write_mesh
+from .recent import RecentFrames
 from .track import TrackingParams, dense_motion, track_frame
 
 SEGMENTS = (None, "plane", "change")
@@ -92,6 +93,7 @@ def fuse_sequence(sequence: RGBDSequence, volume: TSDFVolume, params: TrackingPa
     camera = sequence.intrinsics
     fused = _Fused([], [], None, [])
     keep_every = max(1, int(np.ceil(len(sequence) / MAX_VIEWS)))
+    recent = RecentFrames()  # each frame's features and odometry pyramid, made once
     key_every = max(1, int(np.ceil(len(sequence) / MAX_KEYFRAMES)))
     keyframes: dict[int, Features] = {}
     edges: list[Edge] = []
@@ -105,7 +107,7 @@ def fuse_sequence(sequence: RGBDSequence, volume: TSDFVolume, params: TrackingPa
         else:
             model = tracking_model if previous is None and volume.frames == 0 else volume
             result = track_frame(model, color, depth, camera, previous, params,
-                                 guesses=guesses if previous is None else ())
+                                 guesses=guesses if previous is None else (), recent=recent)
             pose, ok = result.pose, result.accepted
             bar.set_postfix_str(f"fitness {result.fitness:.2f}" + ("" if ok else f", rejected ({result.reason})"))
             if ok:
@@ -121,7 +123,7 @@ def fuse_sequence(sequence: RGBDSequence, volume: TSDFVolume, params: TrackingPa
             edges.append(Edge(previous_index, index, np.linalg.inv(pose) @ previous[2], _support(depth, camera),
                               False))
         if close_loops and index % key_every == 0:
-            keyframes[index] = frame_features(color, depth, camera)
+            keyframes[index] = frame_features(color, depth, camera, recent)
         previous, previous_index = (color, depth, pose), index
         if index % keep_every == 0:
             fused.views.append((depth, pose, camera))
@@ -132,7 +134,7 @@ def fuse_sequence(sequence: RGBDSequence, volume: TSDFVolume, params: TrackingPa
     if close_loops and len(keyframes) > 3 and tracking_model is None:
         start = time.process_time()
         tracked = {i: fused.poses[i] for i in range(len(fused.poses)) if fused.accepted[i]}
-        loops = loop_edges(tracked, keyframes, _dense_refiner(sequence, params))
+        loops = loop_edges(tracked, keyframes, _dense_refiner(sequence, params, recent))
         if loops:
             _refuse(sequence, volume, fused, optimise(tracked, edges + loops), loops, progress, label)
         fused.closing_cpu = time.process_time() - start
@@ -144,7 +146,7 @@ def _support(depth: np.ndarray, camera: Intrinsics) -> np.ndarray:
     return information(_world_points(depth, camera, np.eye(4), stride=max(1, camera.width // 40)))
 
 
-def _dense_refiner(sequence: RGBDSequence, params: TrackingParams):
+def _dense_refiner(sequence: RGBDSequence, params: TrackingParams, recent: RecentFrames):
     """refine(a, b, guess) for loop_edges: hybrid RGB-D odometry of frame a onto frame b from the guess."""
     frames: dict[int, tuple] = {}
 
@@ -157,7 +159,8 @@ def _dense_refiner(sequence: RGBDSequence, params: TrackingParams):
 
     def refine(a: int, b: int, guess: np.ndarray):
         (color_a, depth_a), (color_b, depth_b) = load(a), load(b)
-        transform = dense_motion(color_a, depth_a, color_b, depth_b, sequence.intrinsics, guess, params)
+        transform = dense_motion(color_a, depth_a, color_b, depth_b, sequence.intrinsics, guess, params,
+                                 recent=recent)
         return None if transform is None else (transform, _support(depth_b, sequence.intrinsics))
     return refine
 

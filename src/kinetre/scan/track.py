@@ -30,6 +30,7 @@ from numba import njit
 
 from .features import feature_motion
 from .frames import Intrinsics
+from .recent import RecentFrames, remembered
 from .fuse import TSDFVolume
 
 
@@ -192,17 +193,10 @@ class _Pyramid:
     camera: Intrinsics
 
 
-_PYRAMIDS: list = []  # (colour array, depth array, options, _Pyramid) of the last few frames: each made once
-
-
 def _pyramid(o3d, color: np.ndarray, depth: np.ndarray, camera: Intrinsics, width: int,
              depth_outlier: float) -> _Pyramid:
     """The frame halved until at most `width` pixels wide, as Open3D's own pyramid would (colour by a Gaussian
-    pyramid, depth by `_pyrdown_depth` with its threshold, twice the outlier distance); cached per frame."""
-    key = (width, depth_outlier)
-    for image, dimage, options, pyramid in _PYRAMIDS:
-        if image is color and dimage is depth and options == key:
-            return pyramid
+    pyramid, depth by `_pyrdown_depth` with its threshold, twice the outlier distance)."""
     from .features import _cv2
     cv2 = _cv2()
     halvings = _halvings(camera.width, width)
@@ -211,32 +205,34 @@ def _pyramid(o3d, color: np.ndarray, depth: np.ndarray, camera: Intrinsics, widt
     for _ in range(halvings):
         small_color = cv2.pyrDown(small_color, dstsize=(small_color.shape[1] // 2, small_color.shape[0] // 2))
         small_depth = _pyrdown_depth(small_depth, np.float32(2.0 * depth_outlier))
-    pyramid = _Pyramid(_rgbd(o3d, small_color, small_depth), _subsampled(camera, 2 ** halvings))
-    _PYRAMIDS.insert(0, (color, depth, key, pyramid))
-    del _PYRAMIDS[4:]
-    return pyramid
+    return _Pyramid(_rgbd(o3d, small_color, small_depth), _subsampled(camera, 2 ** halvings))
 
 
 def frame_motion(color: np.ndarray, depth: np.ndarray, prev_color: np.ndarray, prev_depth: np.ndarray,
-                 camera: Intrinsics, params: "TrackingParams" = None, depth_max: float = 3.0) -> np.ndarray | None:
+                 camera: Intrinsics, params: "TrackingParams" = None, depth_max: float = 3.0,
+                 recent: RecentFrames | None = None) -> np.ndarray | None:
     """(4, 4) motion of the camera from the previous frame to this one (maps this frame's points into the
     previous camera), or None: ORB feature matches seed dense hybrid RGB-D odometry (module notes)."""
-    motion = feature_motion(color, depth, prev_color, prev_depth, camera)
+    motion = feature_motion(color, depth, prev_color, prev_depth, camera, recent=recent)
     init = motion.transform if motion is not None else None
-    step = dense_motion(color, depth, prev_color, prev_depth, camera, init, params, depth_max)
+    step = dense_motion(color, depth, prev_color, prev_depth, camera, init, params, depth_max, recent)
     return step if step is not None else init
 
 
 def dense_motion(color: np.ndarray, depth: np.ndarray, other_color: np.ndarray, other_depth: np.ndarray,
                  camera: Intrinsics, init: np.ndarray | None, params: "TrackingParams" = None,
-                 depth_max: float = 3.0) -> np.ndarray | None:
+                 depth_max: float = 3.0, recent: RecentFrames | None = None) -> np.ndarray | None:
     """Hybrid (depth + photometric) RGB-D odometry mapping this frame's points into the other camera, from
-    `init`, on the frames' pyramids (`_pyramid`; `params.odometry_iterations` per level, coarsest first)."""
+    `init`, on the frames' pyramids (`_pyramid`, made once per frame of a scan that keeps `recent`;
+    `params.odometry_iterations` per level, coarsest first)."""
     from .fuse import open3d
     o3d = open3d()
     params = params or TrackingParams()
-    source = _pyramid(o3d, color, depth, camera, params.odometry_width, params.depth_outlier)
-    target = _pyramid(o3d, other_color, other_depth, camera, params.odometry_width, params.depth_outlier)
+
+    def pyramid(c, d):
+        options = (params.odometry_width, params.depth_outlier)
+        return remembered(recent, ("pyramid", c, d, camera, *options), lambda: _pyramid(o3d, c, d, camera, *options))
+    source, target = pyramid(color, depth), pyramid(other_color, other_depth)
     return _odometry(o3d, source.rgbd, target.rgbd, source.camera, depth_max, params.odometry_iterations,
                      o3d.t.pipelines.odometry.Method.Hybrid, params.depth_outlier, init, params.odometry_tolerance)
 
@@ -257,13 +253,14 @@ def _score(volume: TSDFVolume, depth: np.ndarray, camera: Intrinsics, pose: np.n
 def track_frame(volume: TSDFVolume, color: np.ndarray, depth: np.ndarray, camera: Intrinsics,
                 previous: tuple[np.ndarray, np.ndarray, np.ndarray] | None,
                 params: TrackingParams = TrackingParams(),
-                guesses: tuple[np.ndarray, ...] = ()) -> TrackResult:
+                guesses: tuple[np.ndarray, ...] = (), recent: RecentFrames | None = None) -> TrackResult:
     """Pose of one frame (colour (H, W, 3) uint8, depth (H, W) float32 m) against the fused model.
 
     previous : (colour, depth, pose) of the last accepted frame: its motion to this frame (`frame_motion`) gives
     the pose, which is kept when the frame agrees with the model there; otherwise (or without a previous frame)
     frame-to-model ICP starts from that pose, the previous one and `guesses` (e.g. the start of another
-    sweep), and the best-scoring alignment wins.
+    sweep), and the best-scoring alignment wins. recent: the scan's `RecentFrames` (each frame's features and
+    pyramid made once), if any.
     """
     from .fuse import open3d
     o3d = open3d()
@@ -276,7 +273,7 @@ def track_frame(volume: TSDFVolume, color: np.ndarray, depth: np.ndarray, camera
     starts = []
     if previous is not None:
         prev_color, prev_depth, prev_pose = previous
-        step = frame_motion(color, depth, prev_color, prev_depth, camera, params, volume.depth_max)
+        step = frame_motion(color, depth, prev_color, prev_depth, camera, params, volume.depth_max, recent)
         if step is not None:
             best = _score(volume, depth, camera, prev_pose @ step, params)
             starts.append(best.pose)
