@@ -17,6 +17,7 @@ Prints JSON lines:
 from __future__ import annotations
 
 import asyncio
+import gc
 import json
 import os
 import struct
@@ -210,6 +211,8 @@ async def load(base: str, token: str | None, frames, pids: dict, captures=CAPTUR
     await caps[1].ws.send('{"type": "possess", "subset": "right leg"}')
     await wait_possessing(caps[0])
     await asyncio.sleep(1.0)
+    gc.collect()
+    gc.freeze()  # this generator's own full collections would stall every client's receipt
     rss_start = {name: rss_mb(pid) for name, pid in pids.items()}
     cpu_start = cpu_use(pids)
     t0 = time.monotonic()

@@ -77,6 +77,7 @@ class SolveReport:
     factorisations: int    # numeric factorisations done (of K_σ for "pcg", of JᵀJ for "exact")
     energies: tuple        # E after each accepted step, starting with the initial E
     cg_iterations: int = 0  # conjugate-gradient iterations ("pcg")
+    stopped: bool = False   # ended early by `stop` (a newer frame waits), not converged
 
 
 class GaussNewton:
@@ -96,6 +97,7 @@ class GaussNewton:
         self._node_fac = np.zeros((nodes, 12, 12))
         self._no_gradient = np.zeros(0)
         self._last_energy = None  # the last solve's result ("pcg")
+        self._jump_left = 0  # exact steps left to a jump that `stop` cut short (it goes on next frame)
         # Below this, residuals are at round-off level (1e-10 of the graph's size per residual).
         extent = float(np.ptp(system.b_con.reshape(-1, 3), axis=0).max()) if len(system.b_con) else 1.0
         rows = 6 * system.n // 12 + len(system.b_reg) + len(system.b_con)
@@ -136,11 +138,14 @@ class GaussNewton:
         return self._linear_data
 
     def solve(self, x0: np.ndarray, targets: np.ndarray, active: np.ndarray,
-              guess: np.ndarray | None = None) -> SolveReport:
+              guess: np.ndarray | None = None, stop=None) -> SolveReport:
         """Minimise E from x0 (N, 12) for constraint targets (L, 3) scaled by `active` (L,).
 
         `guess` (N, 12), e.g. a pose extrapolated from the last frames, replaces x0 as the start when
-        its energy is lower.
+        its energy is lower. `stop()`, asked after each accepted step of a jump frame's exact solve, says
+        a newer frame is waiting: the frame then ends there (E lowered, not converged) and the next frames
+        go on with exact steps until the jump's budget is spent or it converges, so a live solve never
+        holds one frame for the whole budget (a 253-node jump: 20 factorisations, ~100 ms).
         """
         e0 = self.energy(x0, targets, active)
         if guess is not None:
@@ -151,18 +156,21 @@ class GaussNewton:
             return self._solve_exact(x0, targets, active)
         if self._last_energy is None:
             report = self._solve_exact(x0, targets, active)
-        elif e0 > self.settings.jump * max(self._last_energy, self.energy_floor):
+        elif self._jump_left or e0 > self.settings.jump * max(self._last_energy, self.energy_floor):
             # far from the warm start (a skeleton teleporting): twice the steps, else the frame can end
             # well above the minimum of the exact method, whose damping carries over from frame to frame
-            report = self._solve_exact(x0, targets, active, 2 * self.settings.max_iterations)
+            budget = self._jump_left or 2 * self.settings.max_iterations
+            report = self._solve_exact(x0, targets, active, budget, stop)
+            self._jump_left = max(budget - report.iterations, 0) if report.stopped else 0
         else:
             report = self._solve_pcg(x0, targets, active)
         self._last_energy = report.energy
         return report
 
     def _solve_exact(self, x0: np.ndarray, targets: np.ndarray, active: np.ndarray,
-                     max_iterations: int | None = None) -> SolveReport:
+                     max_iterations: int | None = None, stop=None) -> SolveReport:
         s = self.settings
+        stopped = False
         max_iterations = max_iterations or s.max_iterations
         sysm = self.system
         linear = self._linear(active)
@@ -238,9 +246,13 @@ class GaussNewton:
                     break
             if not stepped or decrease <= s.relative_tolerance * energies[-2]:
                 break
+            if stop is not None and stop():
+                stopped = True
+                break
         self._lam_exact = min(max(lam, s.initial_damping), 1e3)
         return SolveReport(x=x, energy=energy, iterations=iterations, accepted=accepted,
-                           energies=tuple(energies), factorisations=factorisations)
+                           energies=tuple(energies), factorisations=factorisations,
+                           stopped=stopped and iterations < max_iterations)
 
     def _solve_pcg(self, x0: np.ndarray, targets: np.ndarray, active: np.ndarray) -> SolveReport:
         """The same damped Gauss-Newton loop, each step from a few preconditioned CG iterations."""

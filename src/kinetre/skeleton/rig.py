@@ -99,18 +99,19 @@ class Rig:
             return np.zeros((0, 3)), np.zeros(0, bool)
         return np.concatenate(qs), np.concatenate(oks)
 
-    def solve(self, skeletons) -> GraphPose:
+    def solve(self, skeletons, stop=None) -> GraphPose:
         """Deform the graph so the attached joints and bones follow the current frame(s).
 
         Warm-starts from the previous pose, or from the pose extrapolated at constant velocity from the
         last two when that fits the new targets better (fewer iterations on smooth motion). Untracked joints and bones drop out of E_con for this
-        frame; with nothing tracked, or a non-finite result, the last good pose is returned.
+        frame; with nothing tracked, or a non-finite result, the last good pose is returned. `stop`: see
+        `GaussNewton.solve` (a live solve passes "is a newer frame waiting?").
         """
         q, ok = self.targets(skeletons)
         if not ok.any():
             return self._pose_of(self._x, float("nan"), 0)
         guess = None if self._x_before is None else 2.0 * self._x - self._x_before
-        report = self.solver.solve(self._x, q, ok.astype(np.float64), guess)
+        report = self.solver.solve(self._x, q, ok.astype(np.float64), guess, stop)
         self.last_report = report
         if not np.isfinite(report.x).all():
             return self._pose_of(self._x, float("nan"), 0)

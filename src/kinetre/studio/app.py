@@ -55,7 +55,7 @@ from .natsbus import NatsChannels
 from .placement import standing_mesh
 from .protocol import ProtocolError, parse_message, parse_skeleton, with_client
 from .scene import SKELETONS, STATE, TRANSFORMS, Scene, check_subset, now_ms, resample
-from .solve_worker import SolveWorker
+from .solve_worker import SolveWorker, freeze_heap
 from .uploads import read_upload
 
 NODES = 128  # graph size for meshes loaded in the studio (the paper's default)
@@ -348,6 +348,7 @@ def create_app(mesh_path: str | None = None, nodes: int = NODES, sample_motion: 
         if studio.player is not None:
             tasks.append(loop.create_task(studio.player.run()))
             await studio.start_sample()
+        freeze_heap()  # start-up's objects (mesh, kernels, modules) out of every later full collection
         yield
         for task in tasks:
             task.cancel()

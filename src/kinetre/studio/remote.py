@@ -26,7 +26,7 @@ from .natsbus import NatsChannels
 from .placement import Placement
 from .protocol import ProtocolError, parse_message
 from .scene import STATE, TRANSFORMS, Scene, now_ms
-from .solve_worker import SolveWorker
+from .solve_worker import SolveWorker, freeze_heap
 
 log = logging.getLogger("kinetre.network")
 
@@ -286,6 +286,7 @@ async def serve_scene(mesh_path: str | None, url: str, room: str = "main", token
     await asyncio.sleep(0.05)  # the scene's task subscribes to the skeletons when it first runs
     await bus.ready()  # …and the server has it before anyone hears that the scene is up
     scene.publish_state()
+    freeze_heap()
     if started is not None:
         started(studio)
     try:

@@ -178,6 +178,7 @@ class Scene:
         user.frames += 1
         if user.bind is not None:
             self._dirty.set()
+            self.solver.newer_frame()  # a running jump solve yields to this frame
 
     async def possess(self, client: str, subset=None) -> None:
         """Bind the user's current pose (SPEC §3.2); raises AttachError when nothing is near the mesh."""

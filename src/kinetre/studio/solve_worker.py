@@ -11,6 +11,7 @@ public `attach` / `Rig.solve` / `SolverSettings` API is used.
 from __future__ import annotations
 
 import asyncio
+import gc
 import multiprocessing
 import os
 import time
@@ -34,15 +35,22 @@ class InlineSolver:
     def __init__(self):
         self.rig = None
         self.cpu_ms = 0.0  # CPU time of the last solve
+        self._newer = False  # a frame newer than the one being solved has arrived
 
     async def attach(self, graph, skeletons, settings: SolverSettings = SolverSettings()) -> list[np.ndarray]:
         self.rig = await asyncio.to_thread(attach, graph, skeletons, settings=settings)
         return self.rig.attached_joints
 
+    def newer_frame(self) -> None:
+        """A newer frame waits: a jump frame's long exact solve ends at its next step (Rig.solve's `stop`)."""
+        self._newer = True
+
     async def solve(self, skeletons) -> GraphPose:
+        self._newer = False
+
         def timed():
             start = time.thread_time()
-            pose = self.rig.solve(skeletons)
+            pose = self.rig.solve(skeletons, stop=lambda: self._newer)
             self.cpu_ms = 1000 * (time.thread_time() - start)
             return pose
         return await asyncio.to_thread(timed)
@@ -52,6 +60,15 @@ class InlineSolver:
 
     def close(self) -> None:
         self.rig = None
+
+
+def freeze_heap() -> None:
+    """Move everything allocated so far (modules, numba's compiled kernels, the mesh) out of the garbage
+    collector's reach, so that a full collection scans only what was allocated since: in the loaded studio
+    the full collections took 50-70 ms otherwise, an event loop stalled that long puts every viewer's
+    frame in the latency tail. Called once a process has started up."""
+    gc.collect()
+    gc.freeze()
 
 
 def warm_up(frames: int = 3) -> None:
@@ -76,17 +93,19 @@ def warm_up(frames: int = 3) -> None:
         rig.solve(place.skeleton(take.frame(8 * i)))
 
 
-def _serve(conn) -> None:
+def _serve(conn, newer) -> None:
     """The child: one rig, requests answered in order until the pipe closes.
 
     Each reply is (status, value, CPU seconds this request took here): the scene reports the solve's own
-    CPU cost beside its round trip, which also counts waiting for a core on a busy machine.
+    CPU cost beside its round trip, which also counts waiting for a core on a busy machine. `newer` (a
+    shared byte) is set by the scene when a newer frame arrives during a solve (Rig.solve's `stop`).
     """
     os.environ.setdefault("OMP_NUM_THREADS", "1")
     try:
         warm_up()
     except Exception:  # a warm-up that fails only costs the first real solve its compile time
         pass
+    freeze_heap()
     rig = None
     while True:
         try:
@@ -100,7 +119,7 @@ def _serve(conn) -> None:
                 rig = attach(graph, skeletons, settings=settings)
                 reply = ("ok", rig.attached_joints)
             elif request[0] == "solve":
-                reply = ("ok", rig.solve(request[1]))
+                reply = ("ok", rig.solve(request[1], stop=lambda: newer.value))
             else:  # "ping"
                 reply = ("ok", os.getpid())
         except KinetreError as exc:
@@ -116,6 +135,7 @@ class SolveWorker:
     def __init__(self):
         self._proc = None
         self._conn = None
+        self._newer = None  # a byte shared with the child: a newer frame waits
         self._lock = asyncio.Lock()
         self.restarts = 0  # processes lost and replaced
         self.cpu_ms = 0.0  # CPU time the child spent on the last request
@@ -127,7 +147,8 @@ class SolveWorker:
     def _start(self) -> None:
         ctx = multiprocessing.get_context("spawn")  # no fork of a process with an event loop and threads
         parent, child = ctx.Pipe()
-        self._proc = ctx.Process(target=_serve, args=(child,), daemon=True, name="kinetre-solve")
+        self._newer = ctx.RawValue("b", 0)
+        self._proc = ctx.Process(target=_serve, args=(child, self._newer), daemon=True, name="kinetre-solve")
         self._proc.start()
         child.close()
         self._conn = parent
@@ -171,7 +192,14 @@ class SolveWorker:
     async def attach(self, graph, skeletons, settings: SolverSettings = SolverSettings()) -> list[np.ndarray]:
         return await self._call("attach", graph, skeletons, settings)
 
+    def newer_frame(self) -> None:
+        """A newer frame waits: a jump frame's long exact solve ends at its next step (Rig.solve's `stop`)."""
+        if self._newer is not None:
+            self._newer.value = 1
+
     async def solve(self, skeletons) -> GraphPose:
+        if self._newer is not None:
+            self._newer.value = 0  # frames that arrive from now on are newer than these
         return await self._call("solve", skeletons)
 
     def detach(self) -> None:
