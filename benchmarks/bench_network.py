@@ -37,7 +37,11 @@ sys.path.insert(0, str(ROOT / "tests"))
 from studio.conftest import start_server  # noqa: E402
 from studio.nats_server import ROOMS, NatsServer  # noqa: E402
 from studio.studio_ws import frame_message  # noqa: E402
-from websockets.asyncio.client import connect  # noqa: E402
+from websockets.client import ClientProtocol  # noqa: E402
+from websockets.extensions.permessage_deflate import enable_client_permessage_deflate  # noqa: E402
+from websockets.frames import Opcode  # noqa: E402
+from websockets.http11 import Response  # noqa: E402
+from websockets.uri import parse_uri  # noqa: E402
 
 from kinetre.motion.bvh import load_bvh  # noqa: E402
 
@@ -105,35 +109,87 @@ def cpu_use(pids: dict) -> dict:
     return use
 
 
-class Viewer:
-    """A page that only watches: records (seq, t_source, received ms) per transform block.
-
-    Its WebSocket offers permessage-deflate as browsers do; the server decides whether to use it.
+class Client(asyncio.Protocol):
+    """One WebSocket client on websockets' sans-I/O protocol, driven straight from the event loop's socket
+    callback: no task or queue per message, and a transform block is timestamped in the callback that
+    completes it (the earliest this process can know of it; a page or a viewer on another machine would not
+    share one process with 119 other clients). Offers permessage-deflate as browsers do; the server decides.
     """
 
     def __init__(self, url: str):
-        self.url, self.blocks, self.stats, self.ws = url, [], None, None
+        self.ws = ClientProtocol(parse_uri(url), extensions=enable_client_permessage_deflate(None),
+                                 max_size=1 << 22)
+        self.transport = None
+        self.stats = None
+        self.opened = asyncio.get_running_loop().create_future()
 
-    async def run(self, connected: asyncio.Event | None = None):
-        async with connect(self.url, max_size=1 << 22) as ws:
-            self.ws = ws
-            async for data in ws:
-                if isinstance(data, bytes):
-                    _, seq, _, _, t_source, t_out = HEADER.unpack_from(data)
-                    self.blocks.append((seq, t_source, time.time() * 1000, t_out))
-                elif data.startswith('{"type": "stats"'):
-                    self.stats = json.loads(data)
+    async def open(self, timeout=60.0):
+        uri = self.ws.uri
+        await asyncio.get_running_loop().create_connection(lambda: self, uri.host, uri.port)
+        await asyncio.wait_for(self.opened, timeout)
+
+    def connection_made(self, transport):
+        self.transport = transport
+        self.ws.send_request(self.ws.connect())
+        self.flush()
+
+    def data_received(self, data):
+        now = time.time() * 1000
+        self.ws.receive_data(data)
+        for event in self.ws.events_received():
+            if isinstance(event, Response):
+                if self.ws.handshake_exc is not None:
+                    self.opened.set_exception(self.ws.handshake_exc)
+                else:
+                    self.opened.set_result(None)
+            elif event.opcode is Opcode.BINARY:
+                self.block(event.data, now)
+            elif event.opcode is Opcode.TEXT:
+                self.text(event.data.decode())
+        self.flush()
+
+    def flush(self):
+        for chunk in self.ws.data_to_send():
+            if chunk:
+                self.transport.write(chunk)
+
+    def send(self, text: str):
+        self.ws.send_text(text.encode())
+        self.flush()
+
+    def close(self):
+        if self.transport is not None:
+            self.transport.close()
+
+    def block(self, data: bytes, now: float):
+        pass
+
+    def text(self, data: str):
+        if data.startswith('{"type": "stats"'):
+            self.stats = json.loads(data)
 
     async def ask_stats(self, timeout=30.0):
         self.stats = None
-        await self.ws.send('{"type": "stats"}')
+        self.send('{"type": "stats"}')
         deadline = time.monotonic() + timeout
         while self.stats is None and time.monotonic() < deadline:
             await asyncio.sleep(0.05)
         return self.stats
 
 
-class Capture(Viewer):
+class Viewer(Client):
+    """A page that only watches: records (seq, t_source, received ms, t_out) per transform block."""
+
+    def __init__(self, url: str):
+        super().__init__(url)
+        self.blocks = []
+
+    def block(self, data, now):
+        _, seq, _, _, t_source, t_out = HEADER.unpack_from(data)
+        self.blocks.append((seq, t_source, now, t_out))
+
+
+class Capture(Client):
     """A page with a camera: frames at 30 Hz on an absolute schedule; the first two possess the mesh."""
 
     def __init__(self, url, frames: list[tuple[str, str]], index):
@@ -142,23 +198,20 @@ class Capture(Viewer):
         self.received_blocks = 0
         self.state = None
 
-    async def run(self, connected=None):
-        async with connect(self.url, max_size=1 << 22) as ws:
-            self.ws = ws
-            async for data in ws:
-                if isinstance(data, bytes):
-                    self.received_blocks += 1
-                elif isinstance(data, str):
-                    if data.startswith('{"type": "stats"'):
-                        self.stats = json.loads(data)
-                    elif data.startswith('{"type": "state"'):
-                        self.state = json.loads(data)
+    def block(self, data, now):
+        self.received_blocks += 1
 
-    async def send(self, k):
+    def text(self, data):
+        if data.startswith('{"type": "state"'):
+            self.state = json.loads(data)
+        else:
+            super().text(data)
+
+    def frame(self, k):
         self.seq += 1
         t = time.time() * 1000
         head, tail = self.frames[(k + 7 * self.index) % len(self.frames)]
-        await self.ws.send(f'{head}"seq": {self.seq}, "t": {t!r}{tail}')
+        self.send(f'{head}"seq": {self.seq}, "t": {t!r}{tail}')
         self.sent += 1
         if self.index < 2:
             self.stamps.append(t)
@@ -166,7 +219,7 @@ class Capture(Viewer):
     async def stream(self, until: float):
         start, k = time.monotonic(), 0
         while time.monotonic() < until:
-            await self.send(k)
+            self.frame(k)
             k += 1
             await asyncio.sleep(max(0.0, start + k / HZ - time.monotonic()))
 
@@ -199,16 +252,14 @@ async def load(base: str, token: str | None, frames, pids: dict, captures=CAPTUR
     caps = [Capture(ws_url, frames, i) for i in range(captures)]
     views = [Viewer(ws_url) for _ in range(viewers)]
     loop = asyncio.get_running_loop()
-    readers = [loop.create_task(c.run()) for c in caps + views]
-    while not all(c.ws for c in caps + views):
-        await asyncio.sleep(0.05)
+    await asyncio.gather(*(c.open() for c in caps + views))
     # the two possessors: a first frame, fit, possess a leg each
     for cap in caps[:2]:
-        await cap.send(0)
+        cap.frame(0)
     await asyncio.sleep(1.0)
-    await caps[0].ws.send('{"type": "fit"}')
-    await caps[0].ws.send('{"type": "possess", "subset": "left leg"}')
-    await caps[1].ws.send('{"type": "possess", "subset": "right leg"}')
+    caps[0].send('{"type": "fit"}')
+    caps[0].send('{"type": "possess", "subset": "left leg"}')
+    caps[1].send('{"type": "possess", "subset": "right leg"}')
     await wait_possessing(caps[0])
     await asyncio.sleep(1.0)
     gc.collect()
@@ -233,8 +284,8 @@ async def load(base: str, token: str | None, frames, pids: dict, captures=CAPTUR
         state = (await http.get("/api/state")).json()
     cap_stats = await asyncio.gather(*(c.ask_stats() for c in caps))
     view_stats = await asyncio.gather(*(v.ask_stats() for v in views))
-    for task in readers:
-        task.cancel()
+    for client in caps + views:
+        client.close()
 
     stamps = set(caps[0].stamps) | set(caps[1].stamps)
     latency, solving, delivery, solved = [], [], [], set()

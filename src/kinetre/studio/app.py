@@ -51,6 +51,7 @@ from .access import TokenGate, check_bind
 from .avatars import Shelf, avatar_routes
 from .channels import Frame, Hub
 from .face_routes import face_routes
+from .fanout import Framing, RawSockets, raw_socket
 from .natsbus import NatsChannels
 from .placement import standing_mesh
 from .protocol import ProtocolError, parse_message, parse_skeleton, with_client
@@ -335,6 +336,7 @@ def create_app(mesh_path: str | None = None, nodes: int = NODES, sample_motion: 
     shelf = Shelf()
     clients = itertools.count(1)
     prefix = f"{secrets.token_hex(2)}-" if nats else ""  # client names unique across studios of a room
+    framing = Framing()  # each transform block framed once for all pages
     tasks: list[asyncio.Task] = []
 
     @contextlib.asynccontextmanager
@@ -373,6 +375,24 @@ def create_app(mesh_path: str | None = None, nodes: int = NODES, sample_motion: 
             stats.transforms_sent = 1  # a count of every transform block the page got, this one included
         stats.sent = 3 if block is not None else 2
 
+        def count_transforms(frame: Frame) -> None:
+            stats.sent += 1  # counted before any await: an ack may arrive before the send returns
+            if stats.transforms_seq and frame.seq > stats.transforms_seq + 1:
+                stats.transforms_skipped += frame.seq - stats.transforms_seq - 1
+            stats.transforms_seq, stats.transforms_sent = frame.seq, stats.transforms_sent + 1
+
+        raw = raw_socket(ws.scope)
+        if raw is not None:
+            def direct(frame: Frame) -> bool:
+                """A transform block written in the publisher's call when the page can take it now."""
+                if frame.subject != TRANSFORMS or not raw.ready() or (
+                        stats.window and stats.sent - stats.acked >= stats.window):
+                    return False  # send_loop delivers it (latest wins) once the page can take it
+                count_transforms(frame)
+                raw.write(framing(frame.data))
+                return True
+            sub.direct = direct
+
         async def send_loop() -> None:
             # One sender per connection: a slow viewer only ever has the newest frame per subject waiting.
             # With a window, it also never has more than `window` messages in the network buffers, which
@@ -387,13 +407,11 @@ def create_app(mesh_path: str | None = None, nodes: int = NODES, sample_motion: 
                 skeleton = frame.subject.startswith("kinetre.skeleton.")
                 if skeleton and (not stats.skeletons or frame.subject.endswith("." + client)):
                     continue  # other users' skeletons only for viewers that asked; a page draws its own
-                stats.sent += 1  # counted before the await: an ack may arrive before the send returns
                 if frame.subject == TRANSFORMS:
-                    if stats.transforms_seq and frame.seq > stats.transforms_seq + 1:
-                        stats.transforms_skipped += frame.seq - stats.transforms_seq - 1
-                    stats.transforms_seq, stats.transforms_sent = frame.seq, stats.transforms_sent + 1
+                    count_transforms(frame)
                     await ws.send_bytes(frame.data)
                 else:
+                    stats.sent += 1  # counted before the await: an ack may arrive before the send returns
                     await ws.send_text(frame.data.decode())
 
         sender = asyncio.get_running_loop().create_task(send_loop())
@@ -534,7 +552,8 @@ def create_app(mesh_path: str | None = None, nodes: int = NODES, sample_motion: 
             return Response("The studio page is not built: run `make web` (cd web && npm ci && npm run build).",
                             503, media_type="text/plain")
         routes.append(Route("/", not_built))
-    app = Starlette(routes=routes, lifespan=lifespan, middleware=[Middleware(TokenGate, room=room, token=token)])
+    app = Starlette(routes=routes, lifespan=lifespan,
+                    middleware=[Middleware(RawSockets), Middleware(TokenGate, room=room, token=token)])
     app.state.studio = studio
     return app
 

@@ -84,8 +84,13 @@ class Subscription:
         self._queued = 0
         self.skipped = 0  # frames replaced before they were read (how far a slow reader fell behind)
         self.closed = False
+        # frame -> bool: takes a frame at once when nothing is pending (so order is kept), False declines
+        # and the frame waits in its slot as usual (fanout.py: transform blocks written straight to a page)
+        self.direct = None
 
     def _offer(self, frame: Frame) -> None:
+        if self.direct is not None and not self._first and not self._latest and self.direct(frame):
+            return
         mode = self._is_urgent.get(frame.subject)
         if mode is None:
             mode = self._is_urgent[frame.subject] = (any(subject_matches(p, frame.subject) for p in self.urgent),
