@@ -6,18 +6,22 @@
     >>> rig = kinetre.attach(graph, bind_skeleton)                 # doctest: +SKIP
     >>> pose = rig.solve(current_skeleton)                         # doctest: +SKIP
     >>> vertices = kinetre.skin(mesh, graph, pose)                 # doctest: +SKIP
+
+The names below are imported on first use (`kinetre.lazy`): `import kinetre` itself loads no numba,
+scipy or trimesh.
 """
 from .errors import (AttachError, BadGraphError, BadMeshError, BadMotionError, BadScanError,
                      BadSkeletonError, ExportError, KinetreError)
-from .mesh.mesh import Mesh
-from .mesh.load import load_mesh
-from .graph.graph import DeformationGraph
-from .graph.build import build_graph
-from .deform.pose import GraphPose
-from .deform.skinning import skin
-from .skeleton.models import KINECT20, OPENNI17, Skeleton, SkeletonModel
-from .skeleton.subsets import subset_mask, subset_names
-from .skeleton.rig import Rig, attach
+from .lazy import lazy_exports
+
+_EXPORTS = {
+    "Mesh": ".mesh.mesh", "load_mesh": ".mesh.load", "DeformationGraph": ".graph.graph",
+    "build_graph": ".graph.build", "GraphPose": ".deform.pose", "skin": ".deform.skinning",
+    "KINECT20": ".skeleton.models", "OPENNI17": ".skeleton.models", "Skeleton": ".skeleton.models",
+    "SkeletonModel": ".skeleton.models", "subset_mask": ".skeleton.subsets", "subset_names": ".skeleton.subsets",
+    "Rig": ".skeleton.rig", "attach": ".skeleton.rig",
+}
+__getattr__, __dir__ = lazy_exports(__name__, _EXPORTS)
 
 __all__ = [
     "AttachError", "BadGraphError", "BadMeshError", "BadMotionError", "BadScanError", "BadSkeletonError",

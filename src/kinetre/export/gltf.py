@@ -83,9 +83,10 @@ def write_gltf(path, mesh: Mesh, graph: DeformationGraph, poses: list[GraphPose]
         doc.meshes[0].primitives[0].attributes.COLOR_0 = _append(
             doc, blob, np.asarray(mesh.colors, dtype=np.uint8), gl.VEC4, gl.UNSIGNED_BYTE, normalized=True,
             target=gl.ARRAY_BUFFER)
+    svd = np.linalg.svd(rotations)  # one factorisation serves the bound and either kind of joint
     if stretch is None:
-        stretch = polar_error_bound(mesh, graph, rotations) > tolerance * mesh.diagonal
-    _add_skin_and_animation(doc, blob, graph, rotations, translations, fps, name, bool(stretch))
+        stretch = polar_error_bound(mesh, graph, rotations, svd[1]) > tolerance * mesh.diagonal
+    _add_skin_and_animation(doc, blob, graph, rotations, translations, fps, name, bool(stretch), svd)
     save_gltf(path, doc, blob, "Kinetre (embedded deformation export, trimesh + pygltflib)")
 
 
@@ -153,13 +154,15 @@ def _json_scalar(value):
     raise TypeError(f"{type(value).__name__} is not a glTF JSON value")
 
 
-def polar_rotations(matrices: np.ndarray) -> np.ndarray:
+def polar_rotations(matrices: np.ndarray, svd=None) -> np.ndarray:
     """The rotation factor Q of the polar decomposition M = Q S of each matrix.
 
     Parameters
     ----------
     matrices : (..., 3, 3) float64
         Near-rotations R_j.
+    svd : tuple, optional
+        `np.linalg.svd(matrices)` when the caller has it already.
 
     Returns
     -------
@@ -171,7 +174,7 @@ def polar_rotations(matrices: np.ndarray) -> np.ndarray:
     >>> bool(np.allclose(q, np.eye(3)))
     True
     """
-    u, _, vt = np.linalg.svd(matrices)
+    u, _, vt = np.linalg.svd(matrices) if svd is None else svd
     d = np.sign(np.linalg.det(u @ vt))
     d[d == 0] = 1.0
     u = u.copy()
@@ -281,23 +284,49 @@ def skin_weights(graph: DeformationGraph) -> tuple[np.ndarray, np.ndarray]:
     validator's tolerance), and a joint slot with zero weight is pointed at the row's first joint, so no
     joint index repeats with a non-zero weight.
     """
-    w = np.clip(np.asarray(graph.vertex_weights, dtype=np.float64), 0.0, None)
-    total = w.sum(axis=1, keepdims=True)
-    if (total <= 0).any() or not np.isfinite(total).all():
-        raise ExportError(f"graph: {int((total <= 0).sum())} vertices have no positive skinning weight")
-    w32 = (w / total).astype(np.float32)
-    # put the float32 rounding error on the largest weight
-    big = np.argmax(w32, axis=1)
-    rows = np.arange(w32.shape[0])
-    w32[rows, big] = 0.0
-    w32[rows, big] = np.float32(1.0) - w32.sum(axis=1, dtype=np.float32)
-    j = np.asarray(graph.vertex_nodes, dtype=np.int64).copy()
-    j[w32 == 0] = j[rows, big][:, None].repeat(4, axis=1)[w32 == 0]
-    dtype = np.uint8 if graph.node_count < 256 else np.uint16
-    return j.astype(dtype), w32
+    joints = np.empty(graph.vertex_nodes.shape, np.uint8 if graph.node_count < 256 else np.uint16)
+    weights = np.empty(graph.vertex_weights.shape, np.float32)
+    bad = _skin_weights(np.ascontiguousarray(graph.vertex_weights, dtype=np.float64),
+                        np.ascontiguousarray(graph.vertex_nodes, dtype=np.int64), joints, weights)
+    if bad:
+        raise ExportError(f"graph: {bad} vertices have no positive skinning weight")
+    return joints, weights
 
 
-def polar_error_bound(mesh: Mesh, graph: DeformationGraph, rotations: np.ndarray) -> float:
+@njit(cache=True)
+def _skin_weights(w_in, nodes, joints, w32):
+    """`skin_weights` row by row (one pass instead of a dozen (V, 4) temporaries); the sums run in numpy's
+    order for a row of 4, so the result is bit for bit numpy's clip / normalise / float32 / residual-on-the-
+    largest. Returns the number of rows whose total weight is not positive and finite."""
+    bad = 0
+    w = np.empty(w_in.shape[1])
+    for v in range(w_in.shape[0]):
+        total = 0.0
+        for q in range(w.shape[0]):
+            x = w_in[v, q]
+            w[q] = 0.0 if x < 0.0 else x  # np.clip(x, 0, None): NaN stays NaN
+            total += w[q]
+        if not (total > 0.0 and np.isfinite(total)):
+            bad += 1
+            continue
+        big = 0
+        for q in range(w.shape[0]):
+            w32[v, q] = np.float32(w[q] / total)
+            if w32[v, q] > w32[v, big]:
+                big = q
+        # the float32 rounding error goes on the largest weight
+        w32[v, big] = 0.0
+        rest = w32[v, 0]
+        for q in range(1, w.shape[0]):
+            rest += w32[v, q]
+        w32[v, big] = np.float32(1.0) - rest
+        for q in range(w.shape[0]):
+            joints[v, q] = nodes[v, big] if w32[v, q] == 0 else nodes[v, q]
+    return bad
+
+
+def polar_error_bound(mesh: Mesh, graph: DeformationGraph, rotations: np.ndarray,
+                      singular_values: np.ndarray | None = None) -> float:
     """Upper bound on how far any vertex moves when each R_j is replaced by its polar rotation Q_j.
 
     |sum_j w_j (R_j - Q_j)(v - g_j)| <= max_j ||R_j - Q_j||_2 * r_j, with r_j the largest distance from
@@ -306,6 +335,8 @@ def polar_error_bound(mesh: Mesh, graph: DeformationGraph, rotations: np.ndarray
     Parameters
     ----------
     rotations : (F, N, 3, 3) float64
+    singular_values : (F, N, 3) float64, optional
+        Their singular values, when the caller has them already.
 
     Returns
     -------
@@ -315,7 +346,7 @@ def polar_error_bound(mesh: Mesh, graph: DeformationGraph, rotations: np.ndarray
                    np.ascontiguousarray(graph.vertex_nodes), np.ascontiguousarray(graph.vertex_weights))
     # R − Q = U (diag(s) − diag(1, 1, d)) V^T with d = sign det R: its 2-norm is max_i |s_i − e_i|
     # (where det R = 0, s_3 = 0 and |s_3 − d| = 1 for either sign)
-    s = np.linalg.svd(rotations, compute_uv=False)                                             # (F, N, 3)
+    s = np.linalg.svd(rotations, compute_uv=False) if singular_values is None else singular_values  # (F, N, 3)
     d = np.where(np.linalg.det(rotations) < 0, -1.0, 1.0)
     gap = np.maximum(np.abs(s[..., :2] - 1.0).max(axis=-1), np.abs(s[..., 2] - d))            # (F, N)
     return float((gap * reach[None]).max())
@@ -336,12 +367,14 @@ def _reach(vertices, nodes, indices, weights):
     return reach
 
 
-def stretch_factors(rotations: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def stretch_factors(rotations: np.ndarray, svd=None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """R = U diag(s) W per node and frame, with U, W proper rotations chosen continuous in time.
 
     Parameters
     ----------
     rotations : (F, N, 3, 3) float64
+    svd : tuple, optional
+        `np.linalg.svd(rotations)` when the caller has it already (its arrays are modified).
 
     Returns
     -------
@@ -354,7 +387,7 @@ def stretch_factors(rotations: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.n
     M^T W): of the 24 proper ones, each frame takes the M nearest to the previous frame's factors, so a
     player interpolating between keys does not swing through a relabelling of the axes.
     """
-    u, s, w = np.linalg.svd(rotations)
+    u, s, w = np.linalg.svd(rotations) if svd is None else svd
     # make U and W proper; a reflection in R (det < 0) goes into the last scale
     du, dw = np.sign(np.linalg.det(u)), np.sign(np.linalg.det(w))
     du[du == 0], dw[dw == 0] = 1.0, 1.0
@@ -387,7 +420,7 @@ def _proper_signed_permutations() -> np.ndarray:
     return np.array(out)
 
 
-def _add_skin_and_animation(doc, blob, graph, rotations, translations, fps, name, stretch):
+def _add_skin_and_animation(doc, blob, graph, rotations, translations, fps, name, stretch, svd):
     f, n = translations.shape[:2]
     prim = doc.meshes[0].primitives[0]
     joints, weights = skin_weights(graph)
@@ -424,13 +457,13 @@ def _add_skin_and_animation(doc, blob, graph, rotations, translations, fps, name
     position = (g[None] + translations).astype(np.float32)              # (F, N, 3)
     tracks = []                                                          # (node, path, (F, k) values)
     if stretch:
-        u, s, w = stretch_factors(rotations)
+        u, s, w = stretch_factors(rotations, svd)
         qu, qw = rotation_quaternions(u), rotation_quaternions(w)
         for j in range(n):
             tracks += [(top[j], "translation", position[:, j]), (top[j], "rotation", qu[:, j]),
                        (top[j], "scale", s[:, j].astype(np.float32)), (joint_ids[j], "rotation", qw[:, j])]
     else:
-        quats = rotation_quaternions(polar_rotations(rotations))          # (F, N, 4)
+        quats = rotation_quaternions(polar_rotations(rotations, svd))     # (F, N, 4)
         for j in range(n):
             tracks += [(top[j], "translation", position[:, j]), (top[j], "rotation", quats[:, j])]
     samplers, channels = [], []

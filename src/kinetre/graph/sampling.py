@@ -12,6 +12,7 @@ import numpy as np
 from numba import njit
 
 from ..errors import BadGraphError
+from ..mesh.mesh import bounding_box
 from ..mesh.normals import edges_and_cross
 from .distance import distance_5d
 
@@ -143,7 +144,7 @@ def sample_orientation_aware(vertices: np.ndarray, faces: np.ndarray, normals: n
     count = int(min(max(candidates_per_node * target, 2000), 400_000))
     points, point_normals = surface_points(vertices, faces, normals, count, rng, double_areas)
     # Shift to the origin so grid cell indices stay small integers.
-    lowest = vertices.min(axis=0)
+    lowest = bounding_box(vertices)[0]
     points = points - lowest
     if radius is not None:
         keep = dart_throw(points, point_normals, radius)

@@ -9,7 +9,7 @@ import warnings
 import numpy as np
 
 from ..errors import BadMeshError
-from .mesh import Mesh
+from .mesh import Mesh, bounding_box
 from .clean import clean
 from .normals import normals_and_area
 
@@ -95,7 +95,7 @@ def mesh_from_trimesh(loaded, source: str = "") -> Mesh:
     faces = np.array(tm.faces, dtype=np.int32, order="C")
     uvs = uvs_of(tm.visual, len(vertices))
     normals, area = normals_and_area(vertices, faces, weld=uvs is not None)
-    scale = float(np.ptp(vertices, axis=0).max())
+    scale = float(np.ptp(bounding_box(vertices), axis=0).max())
     if not area > 1e-12 * max(scale, 1e-300) ** 2:
         raise BadMeshError(f"{label}: total surface area is zero (all faces are flat lines or points)")
 

@@ -5,6 +5,9 @@ Needs the `scan` extra (Open3D); importing this package does not, only running a
     >>> from kinetre.scan import scan                                    # doctest: +SKIP
     >>> print(scan("frames/", "chair.ply", segment="plane").summary())    # doctest: +SKIP
 """
-from .pipeline import ScanResult, scan, scan_zip
+from ..lazy import lazy_exports
+
+__getattr__, __dir__ = lazy_exports(__name__, {"ScanResult": ".pipeline", "scan": ".pipeline",
+                                               "scan_zip": ".pipeline"})
 
 __all__ = ["ScanResult", "scan", "scan_zip"]
