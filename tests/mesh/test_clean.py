@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 import trimesh
 
-from kinetre.mesh.clean import clean, is_clean
+from kinetre.mesh.clean import _sorted_rows_distinct, clean, is_clean
 
 
 def trimesh_cleanup(tm):
@@ -70,6 +70,26 @@ def test_each_defect_goes_to_trimesh(defect):
     assert not is_clean(tm)
     ours, theirs = clean(tm), trimesh_cleanup(tm)
     assert np.array_equal(ours.vertices, theirs.vertices) and np.array_equal(ours.faces, theirs.faces)
+
+
+@pytest.mark.parametrize("fan", [3, 40])
+def test_duplicate_face_check_equals_numpy_unique(fan):
+    # sorted corner triples; vertex 0 starts `fan` faces (the sort path above 16, pairwise below)
+    rng = np.random.default_rng(fan)
+    rows = np.sort(rng.integers(0, 60, (3000, 3)), axis=1)
+    rows = rows[(rows[:, 0] < rows[:, 1]) & (rows[:, 1] < rows[:, 2])]
+    rows = np.unique(rows, axis=0)
+    rows = np.vstack([rows[rows[:, 0] != 0], [[0, 1 + k, 2 + k] for k in range(fan)]])
+    rows = np.ascontiguousarray(rng.permutation(rows), dtype=np.int64)
+    assert _sorted_rows_distinct(rows, 60 + fan)
+    for a, b in ((0, len(rows) - 1), (len(rows) // 2, 7)):
+        dup = np.vstack([rows, rows[[a]]]) if b == len(rows) - 1 else rows.copy()
+        if b != len(rows) - 1:
+            dup[b] = dup[a]
+        assert len(np.unique(dup, axis=0)) < len(dup)
+        assert not _sorted_rows_distinct(np.ascontiguousarray(dup), 60 + fan)
+    fan_dup = np.vstack([rows, [[0, 1 + fan // 2, 2 + fan // 2]]])  # a repeat inside vertex 0's fan
+    assert not _sorted_rows_distinct(np.ascontiguousarray(fan_dup), 60 + fan)
 
 
 @pytest.mark.parametrize("name", ["spot.obj", "camelhead.off", "teapot.obj"])
