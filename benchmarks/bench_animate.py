@@ -11,6 +11,8 @@ Records (one JSON object per line, "bench": "animate"):
   a shared machine), `*_median` the middle one. `realtime_factor` = clip seconds / wall seconds (> 1: faster
   than the clip plays), `cpu_realtime_factor` the same with CPU seconds. The per-stage figures (`load_s`,
   `load_cpu`, ...) come from one more warm run measured inside the process (`cmd_animate`'s stats).
+  The children run with Python's bytecode cache on, as an installed package does, whatever
+  PYTHONDONTWRITEBYTECODE says here.
 * `"clip": "hops 23 s"`: the same whole-command timing on a longer clip (the whole 23 s CMU hops at 30 fps).
 * `"bench": "animate_startup"`: `kinetre --help` and an argument error, whole process.
 
@@ -91,6 +93,9 @@ def main() -> None:
         with gzip.open(DATA / "meshes" / "elephant_loop3_large.ply.gz", "rb") as src, open(mesh, "wb") as dst:
             shutil.copyfileobj(src, dst)
         env = dict(os.environ, NUMBA_CACHE_DIR=cache)
+        # as installed: Python's bytecode cache on (an environment that turns it off recompiles every
+        # kinetre module in every run, 0.12 s more)
+        env.pop("PYTHONDONTWRITEBYTECODE", None)
         once = [sys.executable, __file__, "--stages", str(mesh), str(tmp / "stages.glb")]
 
         def run_stages() -> dict:
