@@ -4,6 +4,8 @@ Each iteration solves (JᵀJ + λ diag(JᵀJ)) δ = −Jᵀr. By default (`metho
 gradient iterations preconditioned by the per-coordinate factor of the linear terms (`coordinate_split.py`,
 `krylov.py`): no factorisation per frame, only triangular solves on a 4N system. `method="exact"` solves
 with a sparse Cholesky of the full 12N system, its symbolic analysis reused (the reference).
+`method="local_global"` replaces the PCG loop by Anderson-accelerated local/global iterations on the same
+factor (`local_global.py`), handing over to it when they stall.
 A step that does not lower E is rejected and λ grows, so E never increases. The loop stops after
 `max_iterations` steps, or as soon as an accepted step's decrease is negligible — checked before
 factoring again, so no factorisation is spent only to confirm convergence.
@@ -21,6 +23,7 @@ import numpy as np
 from .coordinate_split import CoordinateSplit
 from .factor import NotPositiveDefinite, ReusedCholesky
 from .gradient import energy_gradient
+from .local_global import CONVERGED, LocalGlobalSettings, local_global
 from .krylov import ADDITIVE, BLOCK_JACOBI, COORDINATE, TWO_LEVEL, V_CYCLE
 from .newton_krylov import gauss_newton_pcg
 from .normal_equations import NormalEquations
@@ -33,7 +36,8 @@ PRECONDITIONERS = {"coordinate": COORDINATE, "block_jacobi": BLOCK_JACOBI, "two_
 class SolverSettings:
     """How `Rig.solve` minimises E per frame.
 
-    method : "pcg" (default) or "exact" (sparse Cholesky of the full system, the reference)
+    method : "pcg" (default), "exact" (sparse Cholesky of the full system, the reference) or
+        "local_global" (`local_global.py`, settings in `local_global`; jumps and the first frame as "pcg")
     preconditioner : for "pcg": "two_level" (K_σ, node blocks, K_σ), "v_cycle" (node blocks, K_σ, node
         blocks: one pair of triangular solves per application instead of two, but at 512 nodes twice the
         iterations), "additive" (K_σ + node blocks),
@@ -59,10 +63,11 @@ class SolverSettings:
     cg_tolerance: float = 0.2
     jump: float = 10.0
     backtracks: int = 2
+    local_global: LocalGlobalSettings = LocalGlobalSettings()
 
     def __post_init__(self):
-        if self.method not in ("pcg", "exact"):
-            raise ValueError(f"SolverSettings.method must be 'pcg' or 'exact', got {self.method!r}")
+        if self.method not in ("pcg", "exact", "local_global"):
+            raise ValueError(f"SolverSettings.method must be 'pcg', 'exact' or 'local_global', got {self.method!r}")
         if self.preconditioner not in PRECONDITIONERS:
             raise ValueError(f"SolverSettings.preconditioner must be one of {sorted(PRECONDITIONERS)}, "
                              f"got {self.preconditioner!r}")
@@ -90,7 +95,7 @@ class GaussNewton:
         self.settings = settings
         self._backend = backend
         self._factor = None
-        self.split = CoordinateSplit(system, backend) if settings.method == "pcg" else None
+        self.split = CoordinateSplit(system, backend) if settings.method != "exact" else None
         nodes = system.n // 12
         self._rot = np.zeros((nodes, 9, 9))
         self._rig = np.zeros((len(system.bridges), 18, 18))
@@ -162,6 +167,8 @@ class GaussNewton:
             budget = self._jump_left or 2 * self.settings.max_iterations
             report = self._solve_exact(x0, targets, active, budget, stop)
             self._jump_left = max(budget - report.iterations, 0) if report.stopped else 0
+        elif self.settings.method == "local_global":
+            report = self._solve_local_global(x0, targets, active)
         else:
             report = self._solve_pcg(x0, targets, active)
         self._last_energy = report.energy
@@ -276,3 +283,31 @@ class GaussNewton:
         return SolveReport(x=x, energy=energy, iterations=iterations, accepted=accepted,
                            energies=tuple(energies[:count]), factorisations=self.split.factorisations - before,
                            cg_iterations=cg_total)
+
+    def _solve_local_global(self, x0: np.ndarray, targets: np.ndarray, active: np.ndarray) -> SolveReport:
+        """Local/global iterations (`local_global.py`), then the PCG loop from their result unless they
+        converged."""
+        lg = self.settings.local_global
+        sysm = self.system
+        w = sysm.weights
+        cons = sysm.constraints
+        before = self.split.factorisations
+        k, fac, k_blocks = self.split.for_active(active)
+        x = np.array(x0, dtype=np.float64, order="C")
+        energies = np.empty(lg.max_iterations + 1)
+        targets = np.ascontiguousarray(targets, dtype=np.float64)
+        energy, iterations, accepted, count, status = local_global(
+            x, sysm.g, sysm.edges, cons.nodes, cons.weights, cons.points, targets,
+            np.ascontiguousarray(active, dtype=np.float64), sysm.bridges, w.rot, w.reg, w.con, w.rig, fac, k_blocks,
+            k[2][self.split.diag_pos], lg.memory, lg.local, lg.line_search, lg.relaxation, lg.refactor,
+            lg.then_gauss_newton or lg.max_iterations,
+            lg.gain_tolerance, self.energy_floor, self._rot, self._rig, self._node_fac, energies)
+        report = SolveReport(x=x, energy=energy, iterations=iterations, accepted=accepted,
+                             energies=tuple(energies[:count]), factorisations=self.split.factorisations - before)
+        if status == CONVERGED:
+            return report
+        rest = self._solve_pcg(x, targets, active)
+        return SolveReport(x=rest.x, energy=rest.energy, iterations=iterations + rest.iterations,
+                           accepted=accepted + rest.accepted, energies=report.energies + rest.energies[1:],
+                           factorisations=report.factorisations + rest.factorisations,
+                           cg_iterations=rest.cg_iterations)
