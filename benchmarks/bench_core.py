@@ -21,6 +21,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
 from reference_solver import reference_iteration  # noqa: E402
 from synthetic import capsule_body  # noqa: E402
+from kinetre.deform.local_global import LocalGlobalSettings  # noqa: E402
 from kinetre.deform.solver import SolverSettings  # noqa: E402
 
 DATA = Path(__file__).resolve().parents[1] / ".." / "shared" / "data"
@@ -61,6 +62,18 @@ DESIGNS = {
     "pcg_additive": SolverSettings(preconditioner="additive"),
     "pcg_coordinate": SolverSettings(preconditioner="coordinate"),
     "pcg_block_jacobi": SolverSettings(preconditioner="block_jacobi"),
+    # issue 9's alternative (`local_global.py`): by default one local/global iteration, then the PCG loop;
+    # "alone" runs them until the gain test (or a stall) ends them
+    "local_global": SolverSettings(method="local_global"),
+    "local_global_two_then_pcg": SolverSettings(method="local_global",
+                                                local_global=LocalGlobalSettings(then_gauss_newton=2)),
+    "local_global_alone": SolverSettings(method="local_global", local_global=LocalGlobalSettings(then_gauss_newton=0)),
+    "local_global_alone_tight": SolverSettings(method="local_global", local_global=LocalGlobalSettings(
+        then_gauss_newton=0, gain_tolerance=1e-6, max_iterations=40)),
+    "local_global_alone_no_anderson": SolverSettings(method="local_global", local_global=LocalGlobalSettings(
+        then_gauss_newton=0, memory=0)),
+    "local_global_alone_global_only": SolverSettings(method="local_global", local_global=LocalGlobalSettings(
+        then_gauss_newton=0, local=False)),
     "exact_gn": SolverSettings(method="exact"),
     "exact_reuse_factor": SolverSettings(method="exact", reuse_factor=True),
 }

@@ -177,7 +177,9 @@ def _animate(args, stats: dict | None) -> int:
     placed = placement.take(take)
     solve_graph = placement.graph(graph)
     bind = placed.frame(args.bind_frame)
-    rig = kinetre.attach(solve_graph, bind, subset=_subset(args.subset))
+    from .deform.solver import SolverSettings
+    settings = SolverSettings() if args.solver is None else SolverSettings(method=args.solver)
+    rig = kinetre.attach(solve_graph, bind, subset=_subset(args.subset), settings=settings)
     rigging.update(1)
     rigging.close()
     att = rig.attachments[0]
@@ -524,6 +526,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--subset", action="append", metavar="JOINTS",
                    help='joints that drive, e.g. "right arm" or "HipCenter,right arm" (repeatable)')
     p.add_argument("--bind-frame", type=int, default=0, help="frame used as the bind pose (default 0)")
+    p.add_argument("--solver", choices=("pcg", "local_global", "exact"), default=None,
+                   help="per-frame solver (default: the library's, pcg): pcg, local_global or exact (the reference)")
     p.add_argument("--fit", nargs="?", const="mesh", default=None, choices=("mesh", "height", "length"),
                    help="--fit alone: resize the mesh to the skeleton instead of the motion to the mesh; "
                         "--fit height|length: size a non-human source to the mesh by that extent")

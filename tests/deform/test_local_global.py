@@ -19,6 +19,9 @@ from kinetre.deform.solver import GaussNewton, SolverSettings
 from .test_solver import _bend, identity_x, node_constraints
 
 LOCAL_GLOBAL = SolverSettings(method="local_global")
+# the reference run to convergence: at its default stop (a step gaining < 1e-3 of E) the exact solve
+# ends ~1e-3 above the minimum, and local/global below it (median −1.0e-3 on the two-skeleton walk)
+TIGHT = 1e-5
 
 
 @pytest.fixture(scope="module")
@@ -33,16 +36,18 @@ def _pose(x):
 
 @pytest.mark.parametrize("angles", [(20, 30, -10), (0, 90, 0)])
 def test_rigid_motion_of_all_constraints_is_reproduced_exactly(armadillo, angles):
+    """From rest, by local/global iterations alone (no hand-over to Gauss-Newton). Larger turns from rest
+    can end in another local minimum of E_rot; `solve` gives such jumps to the exact method."""
     m, g = armadillo
     cons = node_constraints(g, np.arange(0, g.node_count, 5))
     rot = Rotation.from_euler("xyz", angles, degrees=True).as_matrix()
     shift = np.array([0.3, -0.2, 0.5])
     ne = NormalEquations.build(g.nodes, g.edges, g.edges[g.bridges], cons, EnergyWeights())
-    settings = dataclasses.replace(LOCAL_GLOBAL, max_iterations=30,
-                                   local_global=LocalGlobalSettings(max_iterations=200, gain_tolerance=1e-12))
+    settings = dataclasses.replace(LOCAL_GLOBAL, local_global=LocalGlobalSettings(
+        max_iterations=300, gain_tolerance=1e-12, then_gauss_newton=0))
     rep = GaussNewton(ne, settings)._solve_local_global(identity_x(g.node_count), cons.points @ rot.T + shift,
                                                          np.ones(len(cons)))
-    assert np.all(np.diff(rep.energies) < 0)
+    assert rep.cg_iterations == 0 and np.all(np.diff(rep.energies) < 0)
     mats = _pose(rep.x).node_matrices(g.nodes)
     assert np.abs(mats[:, :3, :3] - rot).max() < 1e-6
     assert np.abs(mats[:, :3, 3] - shift).max() < 1e-6
@@ -56,8 +61,8 @@ def test_fixed_point_is_the_exact_gauss_newton_minimum(armadillo):
     ne = NormalEquations.build(g.nodes, g.edges, g.edges[g.bridges], cons, EnergyWeights())
     exact = GaussNewton(ne, SolverSettings(method="exact", max_iterations=200, relative_tolerance=1e-10)).solve(
         identity_x(g.node_count), targets, np.ones(len(cons)))
-    settings = dataclasses.replace(LOCAL_GLOBAL, local_global=LocalGlobalSettings(max_iterations=2000,
-                                                                                  gain_tolerance=1e-11))
+    settings = dataclasses.replace(LOCAL_GLOBAL, local_global=LocalGlobalSettings(
+        max_iterations=2000, gain_tolerance=1e-11, then_gauss_newton=0))
     rep = GaussNewton(ne, settings)._solve_local_global(identity_x(g.node_count), targets, np.ones(len(cons)))
     assert rep.cg_iterations == 0 and rep.factorisations <= 1  # no Gauss-Newton step was needed
     assert np.all(np.diff(rep.energies) < 0)
@@ -101,8 +106,8 @@ def test_gradient_after_the_global_step_needs_only_the_node_terms(armadillo):
 
 
 def _follows_exact(data_dir, frames_to, subset=None, skeletons=1):
-    """Per frame (E of local/global) / (E of exact) − 1 on the walk, each warm-starting from its own poses;
-    asserts E never increases within a frame."""
+    """Per frame (E of local/global) / (E of exact Gauss-Newton, converged) − 1 on the walk, each
+    warm-starting from its own poses; asserts E never increases within a frame."""
     from kinetre.motion.bvh import load_bvh
     from synthetic import capsule_body
     take = load_bvh(data_dir / "bvh" / "cmu_12_01_walk.bvh")
@@ -110,7 +115,7 @@ def _follows_exact(data_dir, frames_to, subset=None, skeletons=1):
     second = [f.transformed(translation=(0.03, 0.0, 0.02)) for f in frames[5:] + frames[:5]]
     g = kinetre.build_graph(capsule_body(frames[0], radius=0.06), nodes=128, seed=0)
     binds = [frames[0], second[0]][:skeletons]
-    exact = kinetre.attach(g, binds, subset=subset, settings=SolverSettings(method="exact"))
+    exact = kinetre.attach(g, binds, subset=subset, settings=SolverSettings(method="exact", relative_tolerance=TIGHT))
     rig = kinetre.attach(g, binds, subset=subset, settings=LOCAL_GLOBAL)
     rel = []
     for f, f2 in zip(frames[1:], second[1:]):
@@ -126,10 +131,27 @@ def _follows_exact(data_dir, frames_to, subset=None, skeletons=1):
 
 def test_follows_the_exact_solve_on_the_walk_with_two_skeletons(data_dir):
     rel = _follows_exact(data_dir, 120, skeletons=2)
-    assert np.median(np.abs(rel)) < 1e-3 and rel.max() < 2e-2, rel
+    assert np.median(np.abs(rel)) < 1e-3 and np.abs(rel).max() < 1e-2, rel
 
 
 def test_follows_the_exact_solve_when_one_arm_possesses_the_body(data_dir):
     """Most of the graph is held only by E_reg/E_rot: rotations must travel through the graph."""
     rel = _follows_exact(data_dir, 160, subset="right arm")
-    assert np.median(np.abs(rel)) < 1e-3 and rel.max() < 2e-2, rel
+    assert np.median(np.abs(rel)) < 1e-3 and np.abs(rel).max() < 1e-2, rel
+
+
+def test_animate_solver_option_runs_end_to_end(capsys, tmp_path, data_dir):
+    """`kinetre animate --solver local_global` ends at the default solver's energies."""
+    import re
+
+    from kinetre.cli import main
+    median = {}
+    for solver in ("local_global", "pcg"):
+        code = main(["animate", str(data_dir / "meshes" / "spot.obj"), "--motion",
+                     str(data_dir / "bvh" / "cmu_12_01_walk.bvh"), "--nodes", "48", "--max-frames", "12", "--fit",
+                     "-o", str(tmp_path / f"{solver}.glb"), "--solver", solver])
+        out, err = capsys.readouterr()
+        assert code == 0, err
+        assert "solved 12 frames" in out
+        median[solver] = float(re.search(r"median energy ([0-9.e+-]+)", out).group(1))
+    assert median["local_global"] == pytest.approx(median["pcg"], rel=2e-2)

@@ -20,7 +20,8 @@ fixed-point iteration. E never increases: the mixed iterate is kept only when it
 that does, else y' alone; when none does, the caller hands the frame to Gauss-Newton (`solver.py`).
 The loop stops when the global step's predicted gain g·S g falls below a fraction of E — which misses
 slow, graph-wide rotation modes (one arm possessing a body creeps for tens of iterations), hence the
-default hand-over to Gauss-Newton after `then_gauss_newton` iterations.
+default hand-over to Gauss-Newton after `then_gauss_newton` (one) iteration: the local/global step as
+the initial guess of the PCG loop.
 """
 from __future__ import annotations
 
@@ -55,7 +56,7 @@ class LocalGlobalSettings:
     memory: int = 3
     local: bool = True
     max_iterations: int = 20
-    then_gauss_newton: int = 2
+    then_gauss_newton: int = 1
     gain_tolerance: float = 1e-5
     line_search: bool = True
     relaxation: float = 0.7
