@@ -16,23 +16,15 @@ from pathlib import Path
 import numpy as np
 
 import kinetre
-from kinetre.deform.local_global import LocalGlobalSettings
 from kinetre.deform.solver import SolverSettings
 from kinetre.motion.bvh import load_bvh
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
-from synthetic import capsule_body  # noqa: E402
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from bench_core import DATA, DESIGNS as CORE_DESIGNS, capsule_body  # noqa: E402
 
-DATA = Path(__file__).resolve().parents[1] / ".." / "shared" / "data"
-DESIGNS = {
-    "pcg_default": SolverSettings(),
-    "local_global": SolverSettings(method="local_global"),
-    "local_global_two_then_pcg": SolverSettings(method="local_global",
-                                                local_global=LocalGlobalSettings(then_gauss_newton=2)),
-    "local_global_alone": SolverSettings(method="local_global", local_global=LocalGlobalSettings(then_gauss_newton=0)),
-    "local_global_alone_tight": SolverSettings(method="local_global", local_global=LocalGlobalSettings(
-        then_gauss_newton=0, gain_tolerance=1e-6, max_iterations=40)),
-}
+DESIGNS = {"pcg_default": CORE_DESIGNS["pcg_two_level"],
+           **{name: CORE_DESIGNS[name] for name in ("local_global", "local_global_two_then_pcg", "local_global_alone",
+                                                    "local_global_alone_tight")}}
 STATE = ("_lam", "_lam_exact", "_last_energy", "_jump_left")  # what a solve carries to the next frame
 
 

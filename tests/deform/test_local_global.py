@@ -12,7 +12,7 @@ from kinetre.deform import krylov
 from kinetre.deform.coordinate_split import CoordinateSplit
 from kinetre.deform.energy import EnergyWeights
 from kinetre.deform.gradient import energy_gradient
-from kinetre.deform.local_global import LocalGlobalSettings, _nonlinear_gradient, _to_coordinate
+from kinetre.deform.local_global import LocalGlobalSettings, _nonlinear_gradient
 from kinetre.deform.normal_equations import NormalEquations
 from kinetre.deform.solver import GaussNewton, SolverSettings
 
@@ -94,8 +94,7 @@ def test_gradient_after_the_global_step_needs_only_the_node_terms(armadillo):
     g0 = gradient(x)
     s = np.empty(12 * n)
     krylov._coordinate_solve(*fac[:10], g0, s, np.empty(12 * n))
-    y = np.empty(12 * n)
-    _to_coordinate(x, y)
+    y = krylov.to_coordinate_layout(x)
     f0, f1 = np.empty(12 * n), np.empty(12 * n)
     _nonlinear_gradient(y, ne.bridges, w.rot, w.rig, f0)
     for alpha in (1.0, 0.3):

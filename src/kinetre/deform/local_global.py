@@ -31,8 +31,8 @@ import numpy as np
 from numba import njit
 
 from .gradient import energy_gradient
-from .normal_equations import _ROT_P, _ROT_Q
 from .krylov import _coordinate_solve, _node_solve, local_blocks, node_factors
+from .normal_equations import _ROT_P, _ROT_Q
 
 CONVERGED, STALLED, OUT_OF_ITERATIONS = 0, 1, 2
 
@@ -68,25 +68,16 @@ class LocalGlobalSettings:
 
 
 @njit(cache=True)
-def _to_coordinate(x, y):
-    """y (12N, coordinate layout of `krylov.py`) ← x (N, 12, solver layout)."""
+def _layout(x, y, to_coordinate):
+    """y (12N, the coordinate layout of `krylov.py`) ← x (N, 12, solver layout), or back."""
     for j in range(x.shape[0]):
         o = 12 * j
-        for a in range(3):
-            for b in range(3):
-                y[o + 3 * b + a] = x[j, 3 * a + b]
-            y[o + 9 + a] = x[j, 9 + a]
-
-
-@njit(cache=True)
-def _to_solver(y, x):
-    """x (N, 12) ← y (12N, coordinate layout)."""
-    for j in range(x.shape[0]):
-        o = 12 * j
-        for a in range(3):
-            for b in range(3):
-                x[j, 3 * a + b] = y[o + 3 * b + a]
-            x[j, 9 + a] = y[o + 9 + a]
+        for u in range(12):
+            v = u if u >= 9 else 3 * (u % 3) + u // 3  # R[a, b] at 3 a + b in x, 3 b + a in y
+            if to_coordinate:
+                y[o + v] = x[j, u]
+            else:
+                x[j, u] = y[o + v]
 
 
 @njit(cache=True)
@@ -95,30 +86,24 @@ def _nonlinear_gradient(y, bridges, w_rot, w_rig, out):
     `gradient.energy_gradient`, whose columns c_b of R_j are contiguous here (y[12 j + 3 b : + 3])."""
     out[:] = 0.0
     for j in range(y.shape[0] // 12):
-        o = 12 * j
         for r in range(6):
-            p = _ROT_P[r]
-            q = _ROT_Q[r]
-            s = y[o + 3 * p] * y[o + 3 * q] + y[o + 3 * p + 1] * y[o + 3 * q + 1] + y[o + 3 * p + 2] * y[o + 3 * q + 2]
-            if p == q:
-                s -= 1.0
-            s *= w_rot
-            for a in range(3):
-                out[o + 3 * p + a] += s * y[o + 3 * q + a]
-                out[o + 3 * q + a] += s * y[o + 3 * p + a]
+            _column_pair(y, 12 * j + 3 * _ROT_P[r], 12 * j + 3 * _ROT_Q[r], _ROT_P[r] == _ROT_Q[r], w_rot, out)
     for e in range(bridges.shape[0]):
-        oj = 12 * bridges[e, 0]
-        ok = 12 * bridges[e, 1]
         for a in range(3):
-            for b in range(3):
-                s = y[ok + 3 * a] * y[oj + 3 * b] + y[ok + 3 * a + 1] * y[oj + 3 * b + 1] \
-                    + y[ok + 3 * a + 2] * y[oj + 3 * b + 2]
-                if a == b:
-                    s -= 1.0
-                s *= w_rig
-                for c in range(3):
-                    out[oj + 3 * b + c] += s * y[ok + 3 * a + c]
-                    out[ok + 3 * a + c] += s * y[oj + 3 * b + c]
+            for b in range(3):  # (R_kᵀ R_j)[a, b] = column a of R_k · column b of R_j
+                _column_pair(y, 12 * bridges[e, 1] + 3 * a, 12 * bridges[e, 0] + 3 * b, a == b, w_rig, out)
+
+
+@njit(cache=True)
+def _column_pair(y, oa, ob, diagonal, w, out):
+    """The residual r = c·c' − [diagonal] of columns c = y[oa : oa + 3], c' = y[ob : ob + 3]: out += w r ∂r."""
+    r = y[oa] * y[ob] + y[oa + 1] * y[ob + 1] + y[oa + 2] * y[ob + 2]
+    if diagonal:
+        r -= 1.0
+    r *= w
+    for c in range(3):
+        out[oa + c] += r * y[ob + c]
+        out[ob + c] += r * y[oa + c]
 
 
 @njit(cache=True)
@@ -188,7 +173,7 @@ def local_global(x, g, edges, con_nodes, con_weights, con_points, targets, activ
         top = max(top, k_diag[i // 3])
     for i in range(m):
         damp[i] = 1e-6 * max(k_diag[i // 3], 1e-3 * top)  # keeps a node block definite far from rotations
-    _to_coordinate(x, y)
+    _layout(x, y, True)
     energy = energy_gradient(x, g, edges, con_nodes, con_weights, con_points, targets, active, bridges,
                              w_rot, w_reg, w_con, w_rig, grad, True)
     energies[0] = energy
@@ -228,7 +213,7 @@ def local_global(x, g, edges, con_nodes, con_weights, con_points, targets, activ
                 g1[p] += grad[p] - gf[p] - alpha * (grad[p] - shift[p] * s[p])
         if local:
             if refactor or not factored:
-                _to_solver(y1, xt)
+                _layout(xt, y1, False)
                 for j in range(n):
                     for a in range(3):
                         for b in range(3):
@@ -266,7 +251,7 @@ def local_global(x, g, edges, con_nodes, con_weights, con_points, targets, activ
                     break
                 cand[:] = y1
                 stored = 0
-            _to_solver(cand, xt)
+            _layout(xt, cand, False)
             e_new = energy_gradient(xt, g, edges, con_nodes, con_weights, con_points, targets, active, bridges,
                                     w_rot, w_reg, w_con, w_rig, trial_grad, True)
             if np.isfinite(e_new) and e_new < energy:
@@ -285,3 +270,23 @@ def local_global(x, g, edges, con_nodes, con_weights, con_points, targets, activ
         count += 1
         accepted += 1
     return energy, iterations, accepted, count, status
+
+
+def solve_frame(system, split_data, diag_pos: np.ndarray, settings: LocalGlobalSettings, x0: np.ndarray,
+                targets: np.ndarray, active: np.ndarray, energy_floor: float, rot: np.ndarray, rig: np.ndarray,
+                node_fac: np.ndarray):
+    """`local_global` for a rig's `NormalEquations` and the data of `CoordinateSplit.for_active` (its K
+    diagonal at `diag_pos`); rot, rig, node_fac: scratch blocks. Returns (x, E, iterations, accepted
+    steps, energies, converged), the iterations limited to `then_gauss_newton` when it is set."""
+    k, fac, k_blocks = split_data
+    w, cons = system.weights, system.constraints
+    x = np.array(x0, dtype=np.float64, order="C")
+    energies = np.empty(settings.max_iterations + 1)
+    energy, iterations, accepted, count, status = local_global(
+        x, system.g, system.edges, cons.nodes, cons.weights, cons.points,
+        np.ascontiguousarray(targets, dtype=np.float64), np.ascontiguousarray(active, dtype=np.float64),
+        system.bridges, w.rot, w.reg, w.con, w.rig, fac, k_blocks, k[2][diag_pos], settings.memory, settings.local,
+        settings.line_search, settings.relaxation, settings.refactor,
+        settings.then_gauss_newton or settings.max_iterations, settings.gain_tolerance, energy_floor, rot, rig,
+        node_fac, energies)
+    return x, energy, iterations, accepted, tuple(energies[:count]), status == CONVERGED

@@ -23,8 +23,9 @@ import numpy as np
 from .coordinate_split import CoordinateSplit
 from .factor import NotPositiveDefinite, ReusedCholesky
 from .gradient import energy_gradient
-from .local_global import CONVERGED, LocalGlobalSettings, local_global
 from .krylov import ADDITIVE, BLOCK_JACOBI, COORDINATE, TWO_LEVEL, V_CYCLE
+from .local_global import LocalGlobalSettings
+from .local_global import solve_frame as local_global_frame
 from .newton_krylov import gauss_newton_pcg
 from .normal_equations import NormalEquations
 
@@ -287,27 +288,14 @@ class GaussNewton:
     def _solve_local_global(self, x0: np.ndarray, targets: np.ndarray, active: np.ndarray) -> SolveReport:
         """Local/global iterations (`local_global.py`), then the PCG loop from their result unless they
         converged."""
-        lg = self.settings.local_global
-        sysm = self.system
-        w = sysm.weights
-        cons = sysm.constraints
         before = self.split.factorisations
-        k, fac, k_blocks = self.split.for_active(active)
-        x = np.array(x0, dtype=np.float64, order="C")
-        energies = np.empty(lg.max_iterations + 1)
-        targets = np.ascontiguousarray(targets, dtype=np.float64)
-        energy, iterations, accepted, count, status = local_global(
-            x, sysm.g, sysm.edges, cons.nodes, cons.weights, cons.points, targets,
-            np.ascontiguousarray(active, dtype=np.float64), sysm.bridges, w.rot, w.reg, w.con, w.rig, fac, k_blocks,
-            k[2][self.split.diag_pos], lg.memory, lg.local, lg.line_search, lg.relaxation, lg.refactor,
-            lg.then_gauss_newton or lg.max_iterations,
-            lg.gain_tolerance, self.energy_floor, self._rot, self._rig, self._node_fac, energies)
-        report = SolveReport(x=x, energy=energy, iterations=iterations, accepted=accepted,
-                             energies=tuple(energies[:count]), factorisations=self.split.factorisations - before)
-        if status == CONVERGED:
-            return report
+        x, energy, iterations, accepted, energies, converged = local_global_frame(
+            self.system, self.split.for_active(active), self.split.diag_pos, self.settings.local_global, x0,
+            targets, active, self.energy_floor, self._rot, self._rig, self._node_fac)
+        if converged:
+            return SolveReport(x=x, energy=energy, iterations=iterations, accepted=accepted, energies=energies,
+                               factorisations=self.split.factorisations - before)
         rest = self._solve_pcg(x, targets, active)
         return SolveReport(x=rest.x, energy=rest.energy, iterations=iterations + rest.iterations,
-                           accepted=accepted + rest.accepted, energies=report.energies + rest.energies[1:],
-                           factorisations=report.factorisations + rest.factorisations,
-                           cg_iterations=rest.cg_iterations)
+                           accepted=accepted + rest.accepted, energies=energies + rest.energies[1:],
+                           factorisations=self.split.factorisations - before, cg_iterations=rest.cg_iterations)
