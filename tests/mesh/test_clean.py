@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 import trimesh
 
-from kinetre.mesh.clean import _sorted_rows_distinct, clean, is_clean
+from kinetre.mesh.clean import _rounded_rows_distinct, _sorted_rows_distinct, clean, is_clean
 
 
 def trimesh_cleanup(tm):
@@ -70,6 +70,15 @@ def test_each_defect_goes_to_trimesh(defect):
     assert not is_clean(tm)
     ours, theirs = clean(tm), trimesh_cleanup(tm)
     assert np.array_equal(ours.vertices, theirs.vertices) and np.array_equal(ours.faces, theirs.faces)
+
+
+def test_rounded_key_check_rounds_as_numpy():
+    # 1.5 and 2.5 both round to 2 (half to even), 0.5 to 0: numpy's .round(), which trimesh's weld uses
+    scales = np.array([1.0, 10.0])
+    for rows in ([[1.5, 0.0], [2.5, 0.0]], [[0.5, 0.1], [0.0, 0.1]], [[0.5, 0.1], [1.0, 0.1]], [[3.0, 0.26], [3.0, 0.34]]):
+        values = np.array(rows)
+        unique = len(np.unique((values * scales).round().astype(np.int64), axis=0)) == len(values)
+        assert _rounded_rows_distinct(values, scales) == unique
 
 
 @pytest.mark.parametrize("fan", [3, 40])

@@ -19,9 +19,10 @@ _MARGIN = 1.0 + 1e-6  # a face this close to trimesh's threshold is left to trim
 
 
 @njit(cache=True)
-def _rows_distinct(rows):
-    """True if no two rows of the (n, k) int64 array are equal (open-addressing hash set, O(n))."""
-    n, k = rows.shape
+def _rounded_rows_distinct(values, scales):
+    """True if no two rows of round(values * scales) (numpy's round half to even, as int64) are equal: an
+    open-addressing hash set, O(n), rounding on the fly rather than in (n, k) temporaries."""
+    n, k = values.shape
     size = 1
     while size < 2 * n:
         size *= 2
@@ -30,14 +31,14 @@ def _rows_distinct(rows):
     for r in range(n):
         h = np.uint64(1469598103934665603)
         for c in range(k):
-            h = (h ^ np.uint64(rows[r, c])) * np.uint64(1099511628211)
+            h = (h ^ np.uint64(np.int64(np.rint(values[r, c] * scales[c])))) * np.uint64(1099511628211)
             h ^= h >> np.uint64(29)
         slot = np.int64(h & np.uint64(mask))
         while table[slot] >= 0:
             other = table[slot]
             same = True
             for c in range(k):
-                if rows[other, c] != rows[r, c]:
+                if np.int64(np.rint(values[other, c] * scales[c])) != np.int64(np.rint(values[r, c] * scales[c])):
                     same = False
                     break
             if same:
@@ -126,15 +127,17 @@ def is_clean(tm) -> bool:
     if not _faces_fine(np.ascontiguousarray(vertices), np.ascontiguousarray(faces, dtype=np.int64), tol.merge):
         return False
     # trimesh.grouping.merge_vertices's key: position (and UV, and cached normals) rounded to its digits
-    stacked = [vertices * (10 ** util.decimal_to_digits(tol.merge))]
+    stacked, scales = [vertices], [10.0 ** util.decimal_to_digits(tol.merge)] * 3
     visual = tm.visual
     if visual.defined and visual.kind == "texture" and visual.uv is not None and len(visual.uv) == len(vertices):
-        stacked.append(visual.uv * 10 ** 4)
+        stacked.append(visual.uv)
+        scales += [10.0 ** 4] * 2
     normals = tm._cache["vertex_normals"]
     if np.shape(normals) == vertices.shape:
-        stacked.append(normals * 10 ** 2)
-    key = np.column_stack(stacked).round().astype(np.int64)
-    return bool(_rows_distinct(np.ascontiguousarray(key)))
+        stacked.append(normals)
+        scales += [10.0 ** 2] * 3
+    values = stacked[0] if len(stacked) == 1 else np.column_stack(stacked)
+    return bool(_rounded_rows_distinct(np.ascontiguousarray(values, dtype=np.float64), np.array(scales)))
 
 
 def clean(tm):
