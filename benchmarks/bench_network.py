@@ -304,7 +304,6 @@ async def load(base: str, token: str | None, frames, pids: dict, captures=CAPTUR
         return [round(float(np.median(ms)), 1), round(float(np.percentile(ms, 99)), 1)]
     received = sum(s["received"] for s in cap_stats)
     sent = sum(c.sent for c in caps)
-    scene_frames = sum(u["frames"] for u in state["users"])
     merged, late = state["dropped"]["merged"], state["dropped"]["late"]
     return {
         "captures": captures, "viewers": viewers, "nodes": state["mesh"]["nodes"], "seconds": seconds,
@@ -319,7 +318,7 @@ async def load(base: str, token: str | None, frames, pids: dict, captures=CAPTUR
         "dropped_by_policy": {"skeletons_merged_at_scene": merged, "skeletons_late": late,
                               "transforms_skipped_for_slow_viewers": sum(s["transforms_skipped"] for s in view_stats)},
         "lost": {"capture_to_server": sent - received,
-                 "server_to_scene": received - scene_frames - merged - late,
+                 "server_to_scene": received - state["skeleton_frames"],
                  "server_to_viewers": sum(s["transforms_sent"] for s in view_stats) - sum(len(v.blocks) for v in views),
                  "bus_sequence_gaps": state.get("bus", {}).get("gaps", 0)},
         "rss_mb": {name: [rss_start[name], rss_end[name]] for name in pids},

@@ -11,11 +11,11 @@ from kinetre.skeleton.models import Skeleton
 @pytest.fixture(scope="module")
 def walk_with_teleport(data_dir):
     """The CMU walk at 30 Hz for 20 frames, then the same walk from further on, 40 cm to the side (a
-    tracker that lost the user and found them elsewhere), 20 more frames."""
+    tracker that lost the user and found them elsewhere), 40 more frames."""
     from kinetre.motion.bvh import load_bvh
     take = load_bvh(data_dir / "bvh" / "cmu_12_01_walk.bvh")
     frames = [take.frame(i) for i in range(0, 80, 4)]
-    moved = [take.frame(i) for i in range(240, 320, 4)]
+    moved = [take.frame(i) for i in range(240, 400, 4)]
     moved = [Skeleton(f.model, f.positions + [0.4, 0.0, 0.1], f.tracked) for f in moved]
     return frames, moved
 

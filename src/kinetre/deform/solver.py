@@ -148,10 +148,11 @@ class GaussNewton:
         """Minimise E from x0 (N, 12) for constraint targets (L, 3) scaled by `active` (L,).
 
         `guess` (N, 12), e.g. a pose extrapolated from the last frames, replaces x0 as the start when
-        its energy is lower. `stop()`, asked after each accepted step of a jump frame's exact solve, says
-        a newer frame is waiting: the frame then ends there (E lowered, not converged) and the next frames
-        go on with exact steps until the jump's budget is spent or it converges, so a live solve never
-        holds one frame for the whole budget (a 253-node jump: 20 factorisations, ~100 ms).
+        its energy is lower. `stop()`, asked after each step of a jump frame's exact solve, says a newer
+        frame is waiting: the frame then ends there (E lowered or, after a rejected step, the damping
+        raised; not converged) and the next frames go on with exact steps until the jump's budget is spent
+        or it converges, so a live solve never holds one frame for the whole budget (a 253-node jump: 20
+        factorisations, ~100 ms).
         """
         e0 = self.energy(x0, targets, active)
         if guess is not None:
@@ -252,7 +253,10 @@ class GaussNewton:
                 nu *= 2.0
                 if lam > s.max_damping:
                     break
-            if not stepped or decrease <= s.relative_tolerance * energies[-2]:
+                if stop is not None and stop():  # a rejected step: the raised damping carries over
+                    stopped = True
+                    break
+            if stopped or not stepped or decrease <= s.relative_tolerance * energies[-2]:
                 break
             if stop is not None and stop():
                 stopped = True

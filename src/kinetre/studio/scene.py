@@ -50,6 +50,7 @@ class User:
     seq: int = -1
     t: float = 0.0
     frames: int = 0
+    used: int = -1  # seq of the frame the last solve used
     bind: Skeleton | None = None  # mesh frame, the pose at possession (None = not possessing)
     subset: str | list | None = None
 
@@ -102,6 +103,8 @@ class Scene:
         self._dirty = asyncio.Event()
         self._state_seq = 0
         self.late = 0  # skeleton frames older than the user's newest (dropped)
+        self.superseded = 0  # possessing users' frames replaced by a newer one before any solve used them
+        self.frames_in = 0  # skeleton frames that reached the scene
         self._skeletons = None  # the subscription, whose `skipped` counts frames merged latest-wins
         self.set_mesh(mesh, graph, name)
 
@@ -174,6 +177,8 @@ class Scene:
         if seq <= user.seq and user.frames:
             self.late += 1
             return  # late or duplicate frame: skip, never reorder
+        if user.bind is not None and user.frames and user.used != user.seq:
+            self.superseded += 1  # merged latest-wins: the solve only ever takes the newest
         user.latest, user.seq, user.t = skeleton, seq, t
         user.frames += 1
         if user.bind is not None:
@@ -243,6 +248,9 @@ class Scene:
     async def run(self) -> None:
         """Consume skeleton frames and publish transforms until cancelled."""
         sub = self._skeletons = self.hub.subscribe(SKELETONS)
+        # each frame is taken in the publisher's own call (the server's handler, or the bus callback): a
+        # hop through a task would make it wait a loop iteration, behind whatever else is ready
+        sub.direct = self._take
         loop = asyncio.get_running_loop()
         helpers = [loop.create_task(self._feed(sub)), loop.create_task(self._heartbeat())]
         try:
@@ -274,10 +282,15 @@ class Scene:
             frame = await sub.next()
             if frame is None:
                 return
-            try:
-                self.receive(frame)
-            except Exception:
-                log.exception("bad frame on %s", frame.subject)
+            self._take(frame)
+
+    def _take(self, frame: Frame) -> bool:
+        self.frames_in += 1
+        try:
+            self.receive(frame)
+        except Exception:
+            log.exception("bad frame on %s", frame.subject)
+        return True
 
     async def solve_once(self) -> GraphPose | None:
         """Solve with every possessing user's newest frame and publish the node matrices."""
@@ -288,6 +301,8 @@ class Scene:
             if len(users) != len(self.possessors):
                 return None
             frames = [u.masked(self.placement.to_local(u.latest)) for u in users]
+            for u in users:
+                u.used = u.seq
             t_source = max(u.t for u in users)
             start = time.perf_counter()
             try:
@@ -317,6 +332,7 @@ class Scene:
 
     # --- state for the pages ------------------------------------------------------------------------
     def state(self) -> dict:
+        skipped = self._skeletons.skipped if self._skeletons else 0
         attached = {}
         if self.rig is not None:
             attached = {c: np.asarray(j).tolist() for c, j in zip(self.possessors, self.attached)}
@@ -334,7 +350,10 @@ class Scene:
             "solve_ms": float(np.median(self.solve_ms)) if self.solve_ms else None,
             "solve_cpu_ms": float(np.median(self.solve_cpu_ms)) if self.solve_cpu_ms else None,
             "error": self.last_error,
-            "dropped": {"merged": self._skeletons.skipped if self._skeletons else 0, "late": self.late},
+            # frames in: all that reached the scene; merged: superseded before a solve used them (in the
+            # subscription's slot or as a user's newest frame); late: older than the user's newest
+            "skeleton_frames": self.frames_in + skipped,
+            "dropped": {"merged": self.superseded + skipped, "late": self.late},
         }
 
     def publish_state(self) -> None:
