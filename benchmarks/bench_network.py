@@ -1,8 +1,12 @@
 """The networked studio under load (issue 12), the embedded hub and NATS side by side, plus a 512-node solve.
 
 Load: 20 capture clients sending Kinect-20 frames at 30 Hz (two of them possess the mesh, left and right
-leg), 100 viewers receiving the node transforms, one scene with a 256-node rig; all WebSocket clients
-live in this process (asyncio, one task per client).
+leg), 100 viewers receiving the node transforms, one scene with a 256-node rig. All 120 WebSocket clients
+live in this process, one event loop: each is a `websockets` sans-I/O protocol driven from its socket's
+callback, and a viewer timestamps a transform block in the callback that completes it (no task or queue per
+message, so this generator's own delay is as small as one process can make it; real viewers would be on
+other machines). Every sample counts: nothing is excluded. The generator's start-up objects are frozen out
+of its garbage collector (`gc.freeze`), as the studio's are.
 
     embedded   one studio process: the embedded hub, the scene, its solve worker process
     nats       nats-server + `kinetre scene` + `kinetre studio --nats --remote-scene` (the gateway)

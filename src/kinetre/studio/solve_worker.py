@@ -62,12 +62,12 @@ class InlineSolver:
         self.rig = None
 
 
-YIELD_AFTER_S = 0.010  # CPU seconds a frame's solve may take before it yields to a newer frame
+YIELD_AFTER_S = 0.005  # CPU seconds a frame's solve may take before it yields to a newer frame
 
 
 def yielding(newer) -> callable:
     """Rig.solve's `stop` for a live solve: a newer frame waits (`newer()`) and this one has had its share
-    of CPU. A usual frame (~4 ms at 253 nodes) never yields; a jump frame (up to 20 factorisations,
+    of CPU. Most frames (~4 ms at 253 nodes) never yield; a jump frame (up to 20 factorisations,
     ~100 ms) goes on over the next frames instead of holding every viewer's picture that long."""
     start = time.thread_time()
     return lambda: bool(newer()) and time.thread_time() - start > YIELD_AFTER_S
