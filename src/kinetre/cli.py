@@ -454,7 +454,7 @@ def write_graph_ply(path: str, graph) -> None:
 def cmd_studio(args) -> int:
     from .studio.app import run_studio
     run_studio(args.mesh, host=args.host, port=args.port, open_browser=not args.no_browser, nats=args.nats,
-               room=args.room, token=_token(args), remote_scene=args.remote_scene)
+               room=args.room, token=_token(args), remote_scene=args.remote_scene, nkey=args.nkey)
     return 0
 
 
@@ -468,6 +468,9 @@ def _add_room(p) -> None:
                    help="channels on this NATS server (nats://HOST:4222) instead of the embedded hub")
     p.add_argument("--room", default="main", help="the room's name (its subjects are kinetre.ROOM.*)")
     p.add_argument("--token", default=None, help="the room's token (or KINETRE_TOKEN); required off loopback")
+    p.add_argument("--nkey", metavar="FILE", default=None,
+                   help="the room's NATS nkey seed file: authenticates to NATS instead of the token "
+                        "(kinetre.studio.natsbus.room_nkey makes one)")
 
 
 def cmd_scene(args) -> int:
@@ -475,7 +478,7 @@ def cmd_scene(args) -> int:
     if not args.nats:
         raise UsageError("kinetre scene needs --nats URL: it talks to studios only through a NATS server")
     run_scene(args.mesh, args.nats, room=args.room, token=_token(args), nodes=args.nodes,
-              sample_motion=args.sample)
+              sample_motion=args.sample, nkey=args.nkey)
     return 0
 
 

@@ -312,12 +312,13 @@ def export_take(folder: Path, mesh, graph, take, fps: float) -> dict[str, str]:
 
 def create_app(mesh_path: str | None = None, nodes: int = NODES, sample_motion: bool = True, *,
                nats: str | None = None, room: str = "main", token: str | None = None,
-               remote_scene: bool = False) -> Starlette:
+               remote_scene: bool = False, nkey: str | None = None) -> Starlette:
     """The studio as an ASGI app (tests run it under uvicorn on 127.0.0.1).
 
     With `nats` (a NATS server URL) the channels are that server's subjects for `room` (natsbus.py);
     with `remote_scene` too, the scene is a `kinetre scene` process elsewhere and this server is only
-    the pages' gateway to it (remote.py). A `token` is required from every client (access.py).
+    the pages' gateway to it (remote.py). A `token` is required from every client (access.py); `nkey`, the
+    room's nkey seed file, then authenticates to NATS instead of the token.
     """
     hub = NatsChannels(room) if nats else Hub()
     solver = None
@@ -343,7 +344,7 @@ def create_app(mesh_path: str | None = None, nodes: int = NODES, sample_motion: 
     async def lifespan(app):
         loop = asyncio.get_running_loop()
         if nats:
-            await hub.start(nats, token, name="kinetre-studio")
+            await hub.start(nats, token, name="kinetre-studio", nkey=nkey)
         if solver is not None:
             await solver.start()
         tasks.append(loop.create_task(studio.scene.run()))
@@ -574,7 +575,7 @@ def sample_player(hub: Hub):
 
 def run_studio(mesh_path: str | None, host: str = "127.0.0.1", port: int = 8000, open_browser: bool = True,
                nodes: int = NODES, sample_motion: bool = True, *, nats: str | None = None, room: str = "main",
-               token: str | None = None, remote_scene: bool = False) -> None:
+               token: str | None = None, remote_scene: bool = False, nkey: str | None = None) -> None:
     """Serve the studio until interrupted (what `kinetre studio` runs). Raises KinetreError on a bad mesh,
     an unreachable or refusing NATS server, or a non-loopback `host` without a `token`.
 
@@ -583,8 +584,9 @@ def run_studio(mesh_path: str | None, host: str = "127.0.0.1", port: int = 8000,
     import uvicorn
     check_bind(host, token)
     if nats:
-        asyncio.run(probe_nats(nats, room, token))  # a clear error now rather than a traceback at startup
-    app = create_app(mesh_path, nodes, sample_motion, nats=nats, room=room, token=token, remote_scene=remote_scene)
+        asyncio.run(probe_nats(nats, room, token, nkey))  # a clear error now rather than a traceback at startup
+    app = create_app(mesh_path, nodes, sample_motion, nats=nats, room=room, token=token, remote_scene=remote_scene,
+                     nkey=nkey)
     url = f"http://{'127.0.0.1' if host in ('0.0.0.0', '::') else host}:{port}/"
     if token:
         url += f"?token={token}"
@@ -596,7 +598,7 @@ def run_studio(mesh_path: str | None, host: str = "127.0.0.1", port: int = 8000,
     uvicorn.run(app, host=host, port=port, log_level="warning", ws_max_size=1 << 20, ws_per_message_deflate=False)
 
 
-async def probe_nats(url: str, room: str, token: str | None) -> None:
+async def probe_nats(url: str, room: str, token: str | None, nkey: str | None = None) -> None:
     """Connect to the room once and leave; raises NetworkError with the reason."""
-    bus = await NatsChannels.connect(url, room, token, name="kinetre-probe")
+    bus = await NatsChannels.connect(url, room, token, name="kinetre-probe", nkey=nkey)
     await bus.close()

@@ -12,9 +12,11 @@
 
 Every message is a 16-byte envelope (u64 sequence number, f64 capture timestamp in ms, little-endian)
 followed by the payload, so the sequence and capture time travel end to end without NATS headers.
-Access is per room (*ours*): the NATS user is the room's name and its password the room's token, and the
-server's per-user permissions (`server_config`) confine that user to `kinetre.<room>.>`; request inboxes
-live inside the room too, so a reply never crosses rooms.
+Access is per room (*ours*): the NATS user is the room's name and its password the room's token, or else
+the room is a NATS nkey user (an Ed25519 key pair: the server keeps the public key, studios and scenes
+prove they hold the seed by signing the server's nonce; `room_nkey`, `nkey=`), and the server's per-user
+permissions (`server_config`) confine that user to `kinetre.<room>.>`; request inboxes live inside the
+room too, so a reply never crosses rooms.
 
 Live subjects (skeletons, transforms, state) are latest-wins at the subscriber (a slow reader sees the
 newest frame of each subject), and a frame older than the newest one delivered on its subject (smaller
@@ -26,8 +28,10 @@ from __future__ import annotations
 
 import asyncio
 import logging
+import os
 import struct
 from dataclasses import dataclass, field
+from pathlib import Path
 
 from ..errors import KinetreError
 from .channels import Frame, Subscription, subject_matches
@@ -62,10 +66,47 @@ def unpack(subject: str, payload: bytes) -> Frame | None:
     return Frame(subject, seq, t, payload[ENVELOPE.size:])
 
 
+def room_nkey(seed_file: str | Path) -> str:
+    """Make a room's nkey: a new user seed written to `seed_file` (readable by its owner only: it is the
+    room's secret, for its studios and scene, `--nkey FILE`); returns the public key for `server_config`."""
+    import nkeys
+    seed = nkeys.encode_seed(os.urandom(32), nkeys.PREFIX_BYTE_USER)
+    try:
+        fd = os.open(seed_file, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o600)
+    except OSError as exc:
+        raise NetworkError(f"{seed_file}: cannot write the nkey seed ({exc.strerror})") from None
+    with os.fdopen(fd, "wb") as f:
+        f.write(seed + b"\n")
+    return nkeys.from_seed(bytearray(seed)).public_key.decode()
+
+
+def nkey_public(seed_file: str | Path) -> str:
+    """The public key of the user nkey seed in `seed_file`; NetworkError naming the file otherwise."""
+    import nkeys
+    try:
+        seed = bytearray(Path(seed_file).read_bytes().strip())
+    except OSError as exc:
+        raise NetworkError(f"{seed_file}: cannot read the nkey seed ({exc.strerror})") from None
+    try:
+        public = nkeys.from_seed(seed).public_key.decode()
+    except (nkeys.NkeysError, ValueError):
+        raise NetworkError(f"{seed_file}: not an nkey seed (one line starting with 'SU', as room_nkey "
+                           "or `nk -gen user` write it)") from None
+    if not public.startswith("U"):
+        raise NetworkError(f"{seed_file}: an nkey seed, but not a user's (its line must start with 'SU')")
+    return public
+
+
+def is_nkey_user(key: str) -> bool:
+    """A user's public nkey ('U' and 55 more base32 characters), as `room_nkey` returns."""
+    return len(key) == 56 and key[0] == "U" and set(key) <= set("ABCDEFGHIJKLMNOPQRSTUVWXYZ234567")
+
+
 def server_config(rooms: dict[str, str], port: int, host: str = "127.0.0.1", max_payload: int = 1 << 20) -> str:
     """A nats-server configuration with one user per room, confined to that room's subjects.
 
-    `rooms` maps room name → token (the user's password). Pass the text to `nats-server -c FILE`.
+    `rooms` maps room name → its token (the password of a user named after the room) or its public nkey
+    (`room_nkey`: the user is that key). Pass the text to `nats-server -c FILE`.
     """
     users = []
     for room, token in rooms.items():
@@ -73,7 +114,8 @@ def server_config(rooms: dict[str, str], port: int, host: str = "127.0.0.1", max
         if not token or '"' in token or "\\" in token:
             raise NetworkError(f"room {room!r}: the token must be non-empty, without quotes or backslashes")
         allow = f'["kinetre.{room}.>"]'
-        users.append(f'    {{user: "{room}", password: "{token}", '
+        who = f'nkey: "{token}"' if is_nkey_user(token) else f'user: "{room}", password: "{token}"'
+        users.append(f'    {{{who}, '
                      f'permissions: {{publish: {{allow: {allow}}}, subscribe: {{allow: {allow}}}}}}}')
     return (f"listen: {host}:{port}\nmax_payload: {max_payload}\n"
             "authorization {\n  users = [\n" + ",\n".join(users) + "\n  ]\n}\n")
@@ -112,13 +154,15 @@ class NatsChannels:
 
     @classmethod
     async def connect(cls, url: str, room: str = "main", token: str | None = None, name: str = "kinetre",
-                      timeout: float = 5.0) -> "NatsChannels":
+                      timeout: float = 5.0, nkey: str | Path | None = None) -> "NatsChannels":
         channels = cls(room)
-        await channels.start(url, token, name, timeout)
+        await channels.start(url, token, name, timeout, nkey)
         return channels
 
-    async def start(self, url: str, token: str | None = None, name: str = "kinetre", timeout: float = 5.0) -> None:
-        """Connect as the room's user; raises NetworkError (with the reason) when refused or unreachable."""
+    async def start(self, url: str, token: str | None = None, name: str = "kinetre", timeout: float = 5.0,
+                    nkey: str | Path | None = None) -> None:
+        """Connect as the room's user: with the room's nkey seed file `nkey` if given, else its `token`;
+        raises NetworkError (with the reason) when refused or unreachable."""
         import nats
         import nats.errors
         room = self.room
@@ -133,6 +177,9 @@ class NatsChannels:
             counters.reconnects += 1
 
         auth = {"user": room, "password": token} if token else {}
+        if nkey:
+            nkey_public(nkey)  # a missing or malformed file is named now, not as a failed handshake
+            auth = {"nkeys_seed": str(nkey)}
         try:
             # a first connection that does not retry, so a refusal comes back as a clear error at once
             probe = await asyncio.wait_for(nats.connect(
@@ -149,7 +196,10 @@ class NatsChannels:
             raise NetworkError(f"{url}: no NATS server answers there (is nats-server running?)") from None
         except nats.errors.Error as exc:
             reason = str(exc) or type(exc).__name__
-            if "authorization" in reason.lower():
+            if "authorization" in reason.lower() and nkey:
+                reason = (f"room {room!r} was refused: the nkey in {nkey} is not the room's (the server lists "
+                          "each room's public key)")
+            elif "authorization" in reason.lower():
                 reason = (f"room {room!r} was refused: {'wrong' if token else 'missing'} token "
                           "(the NATS user is the room's name, its password the room's token)")
             raise NetworkError(f"{url}: {reason}") from None

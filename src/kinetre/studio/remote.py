@@ -198,9 +198,9 @@ class GatewayStudio(Studio):
 
 # --- the scene side ------------------------------------------------------------------------------------
 async def serve_scene(mesh_path: str | None, url: str, room: str = "main", token: str | None = None,
-                      nodes: int = 128, sample_motion: bool = False, started=None) -> None:
+                      nodes: int = 128, sample_motion: bool = False, started=None, nkey: str | None = None) -> None:
     """`kinetre scene`: run until cancelled. `started(studio)` is called once it serves."""
-    await probe_nats(url, room, token)  # a refusal is reported before the mesh is loaded
+    await probe_nats(url, room, token, nkey)  # a refusal is reported before the mesh is loaded
     path = mesh_path or str(data_path("spot.obj"))
     mesh, graph = await asyncio.to_thread(prepare_mesh, path, nodes)
     worker = SolveWorker()
@@ -208,7 +208,7 @@ async def serve_scene(mesh_path: str | None, url: str, room: str = "main", token
     # connected only once the scene exists: nobody may hear of it before it subscribes (see below)
     bus = NatsChannels(room)
     studio = Studio(bus, Scene(bus, mesh, graph, Path(path).name, solver=worker), nodes=nodes)
-    await bus.start(url, token, name="kinetre-scene")
+    await bus.start(url, token, name="kinetre-scene", nkey=nkey)
     if sample_motion and mesh_path is None:
         studio.player = sample_player(bus)
     scene = studio.scene
@@ -299,9 +299,9 @@ async def serve_scene(mesh_path: str | None, url: str, room: str = "main", token
 
 
 def run_scene(mesh_path: str | None, url: str, room: str = "main", token: str | None = None, nodes: int = 128,
-              sample_motion: bool = False) -> None:
+              sample_motion: bool = False, nkey: str | None = None) -> None:
     """What `kinetre scene` runs: serve until interrupted. Raises KinetreError (NetworkError) on bad input."""
     def started(studio) -> None:
         print(f"Kinetre scene: {studio.scene.name} ({studio.scene.graph.node_count} nodes) in room {room!r} "
               f"on {url} (Ctrl+C to stop)", flush=True)
-    asyncio.run(serve_scene(mesh_path, url, room, token, nodes, sample_motion, started))
+    asyncio.run(serve_scene(mesh_path, url, room, token, nodes, sample_motion, started, nkey))
