@@ -49,6 +49,18 @@ def test_help_lists_commands_and_examples():
     assert e.value.code == 0
 
 
+def test_parser_and_argument_errors_import_no_engine():
+    # `kinetre --help` and a bad argument answer without loading numba, scipy or trimesh (kinetre.lazy)
+    probe = ("import sys\nfrom kinetre.cli import main\ntry:\n    main(sys.argv[1:])\nexcept SystemExit:\n    pass\n"
+             "print(sorted(m for m in ('numba', 'scipy', 'trimesh', 'kinetre.mesh.load') if m in sys.modules))")
+    for argv in (["--help"], ["animate", "mesh.obj"]):  # the second lacks --motion and -o
+        proc = subprocess.run([sys.executable, "-c", probe, *argv], capture_output=True, text=True, timeout=120)
+        assert proc.returncode == 0, proc.stderr
+        assert proc.stdout.strip().splitlines()[-1] == "[]"
+    import kinetre as package
+    assert package.load_mesh is kinetre.mesh.load.load_mesh and "attach" in dir(package)
+
+
 def test_info_on_each_kind(capsys, data_dir, spot):
     code, out, _ = run(capsys, "info", spot)
     assert code == 0 and "mesh, 3225 vertices, 5856 faces" in out and "UVs: yes" in out

@@ -91,7 +91,7 @@ def cmd_animate(args, stats: dict | None = None) -> int:
     """`kinetre animate`; `stats` (if given) receives the sizes and seconds per stage (for benchmarks)."""
     # What each stage builds (numba's loaded kernels and their typing tables, the mesh, the graph) lives to
     # the end, and the command makes almost no reference cycles (the same ~2,200 objects for 30 or 300
-    # frames): the cyclic collector's passes would only re-walk live objects, 0.25 s of a 2 s run.
+    # frames): the cyclic collector's passes would only re-walk live objects, 0.25 s of a 3 s run.
     # Reference counting still frees everything else as it goes.
     enabled = gc.isenabled()
     gc.disable()

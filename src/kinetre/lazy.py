@@ -13,14 +13,13 @@ def lazy_exports(package: str, exports: dict[str, str]):
     package : str
         The package's `__name__`.
     exports : dict
-        Public name -> the submodule that defines it, relative (".mesh.load"), or "module:name" where the
-        submodule calls it by another name.
+        Public name -> the submodule that defines it under that name, relative (".mesh.load"). A name that is
+        also a submodule's cannot be lazy: importing the submodule would set the package attribute first.
     """
     def __getattr__(name: str):
         if name not in exports:
             raise AttributeError(f"module {package!r} has no attribute {name!r}")
-        module, _, own = exports[name].partition(":")
-        value = getattr(importlib.import_module(module, package), own or name)
+        value = getattr(importlib.import_module(exports[name], package), name)
         vars(importlib.import_module(package))[name] = value  # later look-ups skip __getattr__
         return value
 
