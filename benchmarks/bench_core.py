@@ -55,6 +55,7 @@ def bench_build_graph():
 # exact reference
 DESIGNS = {
     "pcg_two_level": SolverSettings(),
+    "pcg_two_level_gauss_newton_blocks": SolverSettings(curvature=False),
     "pcg_two_level_no_backtracking": SolverSettings(backtracks=0),
     "pcg_two_level_cg_tolerance_0.05": SolverSettings(cg_tolerance=0.05),
     "pcg_two_level_one_cg": SolverSettings(cg_iterations=1),

@@ -338,3 +338,43 @@ def test_default_follows_the_exact_solve_when_few_nodes_are_constrained(data_dir
         assert np.all(np.diff(rig.last_report.energies) < 0)
         rel.append(rig.last_report.energy / e_exact - 1)
     assert np.median(rel) < 1e-3 and max(rel) < 2e-2, rel
+
+
+def test_stretch_curvature_completes_the_rotation_hessian_on_stretched_columns():
+    """With orthogonal, stretched columns E_rot's cross residuals vanish, so Gauss-Newton's block plus
+    `stretch_curvature` is E_rot's exact Hessian (½ ∇²E by central differences of its gradient); with
+    shrunk columns nothing is added (that curvature is negative and left out)."""
+    from scipy.spatial.transform import Rotation
+
+    from kinetre.deform import krylov
+    from kinetre.deform.gradient import energy_gradient
+    q = Rotation.from_euler("xyz", [30, -20, 50], degrees=True).as_matrix()
+    w_rot = 1.7
+    none = np.zeros((0, 2), np.int64)
+
+    def gradient(x):  # ½ ∇E_rot in the coordinate layout
+        grad = np.empty(12)
+        energy_gradient(x.reshape(1, 12), np.zeros((1, 3)), none, np.zeros((0, 4), np.int32),
+                        np.zeros((0, 4)), np.zeros((0, 3)), np.zeros((0, 3)), np.zeros(0), none,
+                        w_rot, 0.0, 0.0, 0.0, grad, True)
+        return grad
+
+    for scale, added in (([1.3, 1.1, 1.2], True), ([0.8, 0.9, 0.7], False)):
+        R = q * np.array(scale)  # columns q_b scaled: orthogonal
+        x = np.concatenate([R.reshape(-1), np.zeros(3)])
+        rot, rig = np.zeros((1, 9, 9)), np.zeros((0, 18, 18))
+        krylov.local_blocks(R[None], none, w_rot, 0.0, rot, rig)
+        gauss_newton = rot[0].copy()
+        krylov.stretch_curvature(R[None], w_rot, rot)
+        h = 1e-6
+        exact = np.empty((9, 9))
+        for u in range(9):  # coordinate-layout unknown u is R[u % 3, u // 3] (x index 3 (u % 3) + u // 3)
+            e = np.zeros(12)
+            e[3 * (u % 3) + u // 3] = h
+            exact[:, u] = ((gradient(x + e) - gradient(x - e)) / (2 * h))[:9]
+        if added:
+            assert np.allclose(rot[0], exact, atol=1e-6 * np.abs(exact).max())
+            assert not np.allclose(gauss_newton, exact, atol=1e-2 * np.abs(exact).max())
+        else:
+            assert np.array_equal(rot[0], gauss_newton)
+        assert np.linalg.eigvalsh(rot[0]).min() > -1e-12

@@ -15,14 +15,14 @@ import numpy as np
 from numba import njit
 
 from .gradient import energy_gradient
-from .krylov import COORDINATE, local_blocks, node_factors, pcg
+from .krylov import COORDINATE, local_blocks, node_factors, pcg, stretch_curvature
 
 
 @njit(cache=True)
 def gauss_newton_pcg(x, g, edges, con_nodes, con_weights, con_points, targets, active, bridges,
                      w_rot, w_reg, w_con, w_rig, kind, fac, kp, ki, kx, k_blocks, k_diag,
                      max_iterations, relative_tolerance, cg_iterations, cg_tolerance, lam, max_damping,
-                     energy_floor, rot, rig, node_fac, energies, backtracks):
+                     energy_floor, rot, rig, node_fac, energies, backtracks, curvature):
     """Minimise E from x (N, 12, updated in place). Returns (E, iterations, accepted, CG iterations,
     number of entries written to `energies` (E after each accepted step, from the initial E), λ)."""
     n = x.shape[0]
@@ -47,6 +47,8 @@ def gauss_newton_pcg(x, g, edges, con_nodes, con_weights, con_points, targets, a
                 for b in range(3):
                     R[j, a, b] = x[j, 3 * a + b]
         local_blocks(R, bridges, w_rot, w_rig, rot, rig)
+        if curvature:
+            stretch_curvature(R, w_rot, rot)
         # diag(JᵀJ) for the damping, floored so a node the terms barely see still gets some
         top = 0.0
         for i in range(m):
