@@ -51,14 +51,16 @@ def bench_build_graph():
                   "seconds": round(time.perf_counter() - t, 3)})
 
 
-# one record per design: the default (two-level PCG), variants of it, the other preconditioners, and the
+# one record per design: the default (half-cycle PCG), variants of it, the other preconditioners, and the
 # exact reference
 DESIGNS = {
-    "pcg_two_level": SolverSettings(),
-    "pcg_two_level_gauss_newton_blocks": SolverSettings(curvature=False),
-    "pcg_two_level_no_backtracking": SolverSettings(backtracks=0),
-    "pcg_two_level_cg_tolerance_0.05": SolverSettings(cg_tolerance=0.05),
-    "pcg_two_level_one_cg": SolverSettings(cg_iterations=1),
+    "pcg_half_cycle": SolverSettings(),
+    "pcg_half_cycle_gauss_newton_blocks": SolverSettings(curvature=False),
+    "pcg_half_cycle_no_backtracking": SolverSettings(backtracks=0),
+    "pcg_half_cycle_cg_tolerance_0.05": SolverSettings(cg_tolerance=0.05),
+    "pcg_two_level": SolverSettings(preconditioner="two_level"),
+    "pcg_two_level_gauss_newton_blocks": SolverSettings(preconditioner="two_level", curvature=False),
+    "pcg_two_level_one_cg": SolverSettings(preconditioner="two_level", cg_iterations=1),
     "pcg_v_cycle": SolverSettings(preconditioner="v_cycle"),
     "pcg_additive": SolverSettings(preconditioner="additive"),
     "pcg_coordinate": SolverSettings(preconditioner="coordinate"),

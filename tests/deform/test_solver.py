@@ -163,7 +163,8 @@ def test_real_walk_converges_every_frame(data_dir):
         assert np.median(err) < 0.02 and err.max() < 0.15
 
 
-PCG_DESIGNS = [SolverSettings(preconditioner=p) for p in ("v_cycle", "two_level", "coordinate", "block_jacobi")]
+PCG_DESIGNS = [SolverSettings(preconditioner=p)
+               for p in ("half_cycle", "v_cycle", "two_level", "coordinate", "block_jacobi")]
 
 
 def test_split_reproduces_the_full_gauss_newton_system(armadillo):
@@ -248,10 +249,16 @@ def test_coordinate_solve_inverts_the_shifted_k(armadillo, backend):
     # CG run long enough solves H x = r, with H p taken from the two-level preconditioner's by-products
     node_fac = np.zeros((n, 12, 12))
     krylov.node_factors(k_blocks, rot, rig, ne.bridges, damp, node_fac)
-    for kind in (krylov.TWO_LEVEL, krylov.V_CYCLE):
+    for kind in (krylov.TWO_LEVEL, krylov.V_CYCLE, krylov.HALF_CYCLE):
         x, its, converged = krylov.pcg(kind, fac, *k, rot, rig, ne.bridges, damp, node_fac, r, 200, 1e-9)
         krylov._hessian_times(*k, rot, rig, ne.bridges, damp, split.shift, x, h_out)
         assert converged and np.abs(h_out - r).max() < 1e-7 * np.abs(r).max(), (kind, its)
+    # the preconditioners that hand H z back to CG: it is H z
+    z, hz, t1, t2 = (np.empty(12 * n) for _ in range(4))
+    for kind in (krylov.TWO_LEVEL, krylov.HALF_CYCLE):
+        assert krylov._precondition(kind, fac, *k, rot, rig, ne.bridges, damp, node_fac, r, z, hz, t1, t2, work)
+        krylov._hessian_times(*k, rot, rig, ne.bridges, damp, split.shift, z, h_out)
+        assert np.abs(hz - h_out).max() < 1e-9 * np.abs(h_out).max(), kind
 
 
 def test_fused_energy_and_gradient_match_the_sparse_forms(armadillo):

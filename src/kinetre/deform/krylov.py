@@ -9,12 +9,16 @@ blocks (E_rot, Eq. 3) and bridge blocks (E_rig's R_kᵀR_j − I, Eq. 7) are den
 
 Preconditioners (see `_precondition`): the coordinate solve S = (K + σ I_R)⁻¹ per coordinate (one sparse
 factor for the rig, three right-hand sides), exact per-node 12×12 blocks B (block Jacobi), and their
-symmetric multiplicative combinations S · B · S (two-level, the default: the factor carries the
-graph-wide coupling, the node blocks the rotation stiffness the shift σ only averages) and B · S · B
-(v-cycle: one pair of triangular solves per application instead of two, as many CG iterations at 256
-nodes and two skeletons, twice as many at 512). Where such a product loses definiteness (far from rotations) CG restarts with
-the additive S + B. Since K_σ S r = r, the residual after a coordinate solve needs only the node and
-bridge blocks (`_after_coordinate_solve`), not a pass over K.
+symmetric multiplicative combinations S · B · S (two-level: the factor carries the graph-wide coupling,
+the node blocks the rotation stiffness the shift σ only averages) and B · S · B (v-cycle: one pair of
+triangular solves per application instead of two, as many CG iterations at 256 nodes and two skeletons,
+twice as many at 512). The default, the half cycle (ours), applies B then S, one pair of triangular
+solves with H z for free, to the first CG iteration only: on the walk most Gauss-Newton steps need no
+more (1.1 per step), and a step that does restarts CG with the symmetric two-level form, since the half
+cycle is not symmetric (256 nodes, two skeletons: 1.87 against 2.17 CPU ms per frame). Where such a
+product loses definiteness (far from rotations) CG restarts with the additive S + B. Since K_σ S r = r,
+the residual after a coordinate solve needs only the node and bridge blocks (`_after_coordinate_solve`),
+not a pass over K.
 """
 from __future__ import annotations
 
@@ -23,7 +27,7 @@ from numba import njit
 
 from .normal_equations import rigidity_block_jacobian
 
-COORDINATE, BLOCK_JACOBI, TWO_LEVEL, ADDITIVE, V_CYCLE = 0, 1, 2, 3, 4
+COORDINATE, BLOCK_JACOBI, TWO_LEVEL, ADDITIVE, V_CYCLE, HALF_CYCLE = 0, 1, 2, 3, 4, 5
 
 
 def to_coordinate_layout(v: np.ndarray) -> np.ndarray:
@@ -257,6 +261,18 @@ def _precondition(kind, fac, kp, ki, kx, rot, rig, bridges, damp, node_fac, r, z
     if kind == BLOCK_JACOBI:
         _node_solve(node_fac, r, z)
         return False
+    if kind == HALF_CYCLE:  # z ← B r, z ← z + S (r − H z): one coordinate solve, and H z comes free
+        _node_solve(node_fac, r, z)
+        _hessian_times(kp, ki, kx, rot, rig, bridges, damp, shift, z, hz)
+        for i in range(r.shape[0]):
+            t1[i] = r[i] - hz[i]
+        _coordinate_solve(lp, li, lx, ld, up, ui, ux, ud, row_perm, col_perm, t1, t2, work)
+        # H (z + t2) = H z + K_σ t2 + (H − K_σ) t2 = hz + t1 + local part
+        for i in range(r.shape[0]):
+            z[i] += t2[i]
+            hz[i] += t1[i]
+        _local_times(rot, rig, bridges, damp, shift, t2, hz)
+        return True
     if kind == V_CYCLE:  # z ← B r, z ← z + S (r − H z), z ← z + B (r − H z)
         _node_solve(node_fac, r, z)
         _hessian_times(kp, ki, kx, rot, rig, bridges, damp, shift, z, t1)
@@ -335,7 +351,7 @@ def pcg(kind, fac, kp, ki, kx, rot, rig, bridges, damp, node_fac, b, max_iterati
     rz = r @ z
     it = 0
     while it < max_iterations:
-        if not (rz > 0.0) and (kind == TWO_LEVEL or kind == V_CYCLE):
+        if not (rz > 0.0) and (kind == TWO_LEVEL or kind == V_CYCLE or kind == HALF_CYCLE):
             # far from rotations E_rot's blocks outgrow 2 (K + σ I) and the multiplicative form can lose
             # definiteness: restart from x with the additive form, which cannot
             kind = ADDITIVE
@@ -355,6 +371,16 @@ def pcg(kind, fac, kp, ki, kx, rot, rig, bridges, damp, node_fac, b, max_iterati
         it += 1
         if np.sqrt(r @ r) <= tolerance * bnorm or it >= max_iterations:
             break
+        if kind == HALF_CYCLE:
+            # one iteration did not do: CG needs a symmetric preconditioner, so restart from x with
+            # the two-level one
+            kind = TWO_LEVEL
+            known = _precondition(kind, fac, kp, ki, kx, rot, rig, bridges, damp, node_fac, r, z, hz, t1, t2,
+                                  work)
+            p[:] = z
+            hp[:] = hz
+            rz = r @ z
+            continue
         fresh = _precondition(kind, fac, kp, ki, kx, rot, rig, bridges, damp, node_fac, r, z, hz, t1, t2, work)
         rz_new = r @ z
         if not (rz_new > 0.0):
