@@ -22,7 +22,7 @@ from kinetre.motion.bvh import load_bvh
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from bench_core import DATA, DESIGNS as CORE_DESIGNS, capsule_body  # noqa: E402
 
-DESIGNS = {"pcg_default": CORE_DESIGNS["pcg_two_level"],
+DESIGNS = {"pcg_default": CORE_DESIGNS["pcg_half_cycle"],
            **{name: CORE_DESIGNS[name] for name in ("local_global", "local_global_two_then_pcg", "local_global_alone",
                                                     "local_global_alone_tight")}}
 STATE = ("_lam", "_lam_exact", "_last_energy", "_jump_left")  # what a solve carries to the next frame
