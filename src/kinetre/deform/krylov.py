@@ -264,14 +264,7 @@ def _precondition(kind, fac, kp, ki, kx, rot, rig, bridges, damp, node_fac, r, z
     if kind == HALF_CYCLE:  # z ← B r, z ← z + S (r − H z): one coordinate solve, and H z comes free
         _node_solve(node_fac, r, z)
         _hessian_times(kp, ki, kx, rot, rig, bridges, damp, shift, z, hz)
-        for i in range(r.shape[0]):
-            t1[i] = r[i] - hz[i]
-        _coordinate_solve(lp, li, lx, ld, up, ui, ux, ud, row_perm, col_perm, t1, t2, work)
-        # H (z + t2) = H z + K_σ t2 + (H − K_σ) t2 = hz + t1 + local part
-        for i in range(r.shape[0]):
-            z[i] += t2[i]
-            hz[i] += t1[i]
-        _local_times(rot, rig, bridges, damp, shift, t2, hz)
+        _coordinate_step(fac, rot, rig, bridges, damp, r, z, hz, t1, t2, work)
         return True
     if kind == V_CYCLE:  # z ← B r, z ← z + S (r − H z), z ← z + B (r − H z)
         _node_solve(node_fac, r, z)
@@ -300,15 +293,22 @@ def _precondition(kind, fac, kp, ki, kx, rot, rig, bridges, damp, node_fac, r, z
     for i in range(r.shape[0]):
         z[i] += t2[i]
     _hessian_times(kp, ki, kx, rot, rig, bridges, damp, shift, z, hz)
+    _coordinate_step(fac, rot, rig, bridges, damp, r, z, hz, t1, t2, work)
+    return True
+
+
+@njit(cache=True)
+def _coordinate_step(fac, rot, rig, bridges, damp, r, z, hz, t1, t2, work):
+    """z ← z + S (r − H z) given hz = H z, which it keeps equal to H z without a pass over K:
+    H (z + t2) = H z + K_σ t2 + (H − K_σ) t2 = hz + (r − hz) + local part."""
+    lp, li, lx, ld, up, ui, ux, ud, row_perm, col_perm, shift = fac
     for i in range(r.shape[0]):
         t1[i] = r[i] - hz[i]
     _coordinate_solve(lp, li, lx, ld, up, ui, ux, ud, row_perm, col_perm, t1, t2, work)
-    # H (z + t2) = H z + K_σ t2 + (H − K_σ) t2 = hz + t1 + local part
     for i in range(r.shape[0]):
         z[i] += t2[i]
         hz[i] += t1[i]
     _local_times(rot, rig, bridges, damp, shift, t2, hz)
-    return True
 
 
 @njit(cache=True)
