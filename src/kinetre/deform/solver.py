@@ -29,6 +29,7 @@ from .local_global import LocalGlobalSettings
 from .local_global import solve_frame as local_global_frame
 from .newton_krylov import gauss_newton_pcg
 from .normal_equations import NormalEquations
+from .rigid_start import rigid_start
 
 PRECONDITIONERS = {"coordinate": COORDINATE, "block_jacobi": BLOCK_JACOBI, "two_level": TWO_LEVEL, "additive": ADDITIVE,
                    "v_cycle": V_CYCLE, "half_cycle": HALF_CYCLE}
@@ -168,9 +169,16 @@ class GaussNewton:
                 x0, e0 = guess, e_guess
         if self.settings.method == "exact":
             return self._solve_exact(x0, targets, active)
+        jump = self._last_energy is not None and e0 > self.settings.jump * max(self._last_energy, self.energy_floor)
+        if jump:  # a teleport is mostly a rigid motion: start from it when it fits better (rigid_start.py)
+            rigid = rigid_start(x0, self.system.g, self.system.constraints, targets, active)
+            e_rigid = self.energy(rigid, targets, active) if rigid is not None else np.inf
+            if e_rigid < e0:
+                x0, e0 = rigid, e_rigid
+                jump = e0 > self.settings.jump * max(self._last_energy, self.energy_floor)
         if self._last_energy is None:
             report = self._solve_exact(x0, targets, active)
-        elif self._jump_left or e0 > self.settings.jump * max(self._last_energy, self.energy_floor):
+        elif self._jump_left or jump:
             # far from the warm start (a skeleton teleporting): twice the steps, else the frame can end
             # well above the minimum of the exact method, whose damping carries over from frame to frame
             budget = self._jump_left or 2 * self.settings.max_iterations
