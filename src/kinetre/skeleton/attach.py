@@ -256,7 +256,13 @@ def _bone_rotations(bind, pos, tracked, bones, reference, parent_bone):
         pb = parent_bone[b]
         if own[b] or pb < 0 or not ok1[b]:
             continue
-        rot[b] = _minimal_rotation_one(rot[pb] @ u0[b], u1[b]) @ rot[pb]
+        turned = np.empty(3)
+        for i in range(3):
+            turned[i] = rot[pb, i, 0] * u0[b, 0] + rot[pb, i, 1] * u0[b, 1] + rot[pb, i, 2] * u0[b, 2]
+        m = _minimal_rotation_one(turned, u1[b])
+        for i in range(3):
+            for j in range(3):
+                rot[b, i, j] = m[i, 0] * rot[pb, 0, j] + m[i, 1] * rot[pb, 1, j] + m[i, 2] * rot[pb, 2, j]
     return rot
 
 
@@ -272,18 +278,36 @@ def minimal_rotation(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 
 @njit(cache=True)
 def _minimal_rotation_one(a, b):
-    """`minimal_rotation` for one pair of unit vectors."""
-    v = np.cross(a, b)
-    c = a @ b
-    s2 = v @ v
+    """`minimal_rotation` for one pair of unit vectors (scalar arithmetic: per frame it runs twice per
+    bone, where small temporary arrays cost more than the maths)."""
+    v0 = a[1] * b[2] - a[2] * b[1]
+    v1 = a[2] * b[0] - a[0] * b[2]
+    v2 = a[0] * b[1] - a[1] * b[0]
+    c = a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+    s2 = v0 * v0 + v1 * v1 + v2 * v2
+    out = np.empty((3, 3))
     if c < -1 + 1e-12 and s2 <= 1e-24:  # opposite: a half turn about an axis perpendicular to a
-        h = np.array([1.0, 0.0, 0.0]) if abs(a[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
-        u = np.cross(a, h)
-        u /= np.sqrt(u @ u)
-        return 2.0 * np.outer(u, u) - np.eye(3)
-    k = np.array([[0.0, -v[2], v[1]], [v[2], 0.0, -v[0]], [-v[1], v[0], 0.0]])
+        h0, h1 = (1.0, 0.0) if abs(a[0]) < 0.9 else (0.0, 1.0)
+        u0, u1, u2 = -a[2] * h1, a[2] * h0, a[0] * h1 - a[1] * h0  # a × (h0, h1, 0)
+        n = np.sqrt(u0 * u0 + u1 * u1 + u2 * u2)
+        u = (u0 / n, u1 / n, u2 / n)
+        for i in range(3):
+            for j in range(3):
+                out[i, j] = 2.0 * u[i] * u[j] - (1.0 if i == j else 0.0)
+        return out
     f = (1 - c) / s2 if s2 > 1e-24 else 0.5
-    return np.eye(3) + k + f * (k @ k)
+    # I + [v]× + f [v]×², with [v]×² = v vᵀ − s2 I
+    v = (v0, v1, v2)
+    for i in range(3):
+        for j in range(3):
+            out[i, j] = f * v[i] * v[j] + ((1.0 - f * s2) if i == j else 0.0)
+    out[0, 1] -= v2
+    out[0, 2] += v1
+    out[1, 0] += v2
+    out[1, 2] -= v0
+    out[2, 0] -= v1
+    out[2, 1] += v0
+    return out
 
 
 def constraint_targets(att: SkeletonAttachment, frame: Skeleton) -> tuple[np.ndarray, np.ndarray]:
