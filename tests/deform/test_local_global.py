@@ -37,7 +37,7 @@ def _pose(x):
 @pytest.mark.parametrize("angles", [(20, 30, -10), (0, 90, 0)])
 def test_rigid_motion_of_all_constraints_is_reproduced_exactly(armadillo, angles):
     """From rest, by local/global iterations alone (no hand-over to Gauss-Newton). Larger turns from rest
-    can end in another local minimum of E_rot; `solve` gives such jumps to the exact method."""
+    can end in another local minimum of E_rot; `solve` gives such jumps a rigid start and twice the steps."""
     m, g = armadillo
     cons = node_constraints(g, np.arange(0, g.node_count, 5))
     rot = Rotation.from_euler("xyz", angles, degrees=True).as_matrix()

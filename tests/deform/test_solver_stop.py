@@ -5,6 +5,7 @@ import numpy as np
 import pytest
 
 import kinetre
+from kinetre.deform.solver import SolverSettings
 from kinetre.skeleton.models import Skeleton
 
 
@@ -23,12 +24,12 @@ def walk_with_teleport(data_dir):
 @pytest.fixture(autouse=True)
 def no_rigid_start(monkeypatch):
     # this walk's teleport is a pure translation, which the rigid start (test_rigid_start.py) turns into a
-    # fast-path frame: without it the frame is a jump, whose exact solve `stop` cuts
+    # fast-path frame: without it the frame is a jump, whose exact steps (jump_steps="exact") `stop` cuts
     monkeypatch.setattr("kinetre.deform.solver.rigid_start", lambda *args: None)
 
 
 def run(graph, frames, moved, stop):
-    rig = kinetre.attach(graph, frames[0])
+    rig = kinetre.attach(graph, frames[0], settings=SolverSettings(jump_steps="exact"))
     for f in frames[1:]:
         rig.solve(f, stop=stop)
     reports = []

@@ -67,8 +67,9 @@ YIELD_AFTER_S = 0.005  # CPU seconds a frame's solve may take before it yields t
 
 def yielding(newer) -> callable:
     """Rig.solve's `stop` for a live solve: a newer frame waits (`newer()`) and this one has had its share
-    of CPU. Most frames (~4 ms at 253 nodes) never yield; a jump frame (up to 20 factorisations,
-    ~100 ms) goes on over the next frames instead of holding every viewer's picture that long."""
+    of CPU. Most frames (~4 ms at 253 nodes) never yield; a jump frame taking exact steps
+    (`jump_steps="exact"`: up to 20 factorisations, ~100 ms) goes on over the next frames instead of holding
+    every viewer's picture that long (the default PCG jump steps are not cut: 5-21 ms)."""
     start = time.thread_time()
     return lambda: bool(newer()) and time.thread_time() - start > YIELD_AFTER_S
 
