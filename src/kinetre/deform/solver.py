@@ -186,7 +186,9 @@ class GaussNewton:
         if self._last_energy is None:
             report = self._solve_exact(x0, targets, active)
         elif jump and self.settings.jump_steps == "pcg":
+            lam = self._lam  # the jump's damping is not the scale of the frames after it
             report = self._solve_pcg(x0, targets, active, 2 * self.settings.max_iterations)
+            self._lam = lam
         elif self._jump_left or jump:
             # far from the warm start (a skeleton teleporting): twice the steps, else the frame can end
             # well above the minimum of the exact method, whose damping carries over from frame to frame
