@@ -176,13 +176,15 @@ class GaussNewton:
                 x0, e0 = guess, e_guess
         if self.settings.method == "exact":
             return self._solve_exact(x0, targets, active)
-        jump = self._last_energy is not None and e0 > self.settings.jump * max(self._last_energy, self.energy_floor)
+        threshold = None if self._last_energy is None else self.settings.jump * max(self._last_energy,
+                                                                                     self.energy_floor)
+        jump = threshold is not None and e0 > threshold
         if jump:  # a teleport is mostly a rigid motion: start from it when it fits better (rigid_start.py)
             rigid = rigid_start(x0, self.system.g, self.system.constraints, targets, active)
             e_rigid = self.energy(rigid, targets, active) if rigid is not None else np.inf
             if e_rigid < e0:
                 x0, e0 = rigid, e_rigid
-                jump = e0 > self.settings.jump * max(self._last_energy, self.energy_floor)
+                jump = e0 > threshold
         if self._last_energy is None:
             report = self._solve_exact(x0, targets, active)
         elif jump and self.settings.jump_steps == "pcg":
