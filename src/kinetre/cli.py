@@ -484,12 +484,13 @@ def cmd_scene(args) -> int:
 
 def cmd_rooms(args) -> int:
     """Write a nats-server configuration for the given rooms (each `ROOM=TOKEN` or `ROOM=@SEED_FILE`)."""
-    from .studio.natsbus import nkey_public, room_nkey, server_config
+    from .studio.natsbus import check_room, nkey_public, room_nkey, server_config
     rooms: dict[str, str] = {}
     for spec in args.rooms:
         room, sep, secret = spec.partition("=")
         if not sep or not room or not secret:
             raise UsageError(f"{spec!r}: a room is ROOM=TOKEN or ROOM=@SEED_FILE (an nkey seed, made if missing)")
+        check_room(room)  # before a seed file is made for it
         if room in rooms:
             raise UsageError(f"room {room!r} is given twice")
         if secret.startswith("@"):

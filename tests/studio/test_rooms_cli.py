@@ -59,10 +59,11 @@ def test_rooms_command_writes_a_working_configuration(tmp_path, capsys):
 @pytest.mark.parametrize("spec, message", [("stage", "ROOM=TOKEN or ROOM=@SEED_FILE"),
                                            ("stage=", "ROOM=TOKEN or ROOM=@SEED_FILE"),
                                            ("bad room=tok", "room"),
+                                           ("bad room=@{new}", "room"),
                                            ("stage=@{notes}", "not an nkey seed")])
 def test_rooms_command_refuses_bad_input(tmp_path, capsys, spec, message):
     notes = tmp_path / "notes.txt"
     notes.write_text("hello\n")
-    assert main(["rooms", spec.format(notes=notes), "-o", str(tmp_path / "r.conf")]) == 2
+    assert main(["rooms", spec.format(notes=notes, new=tmp_path / "new.nk"), "-o", str(tmp_path / "r.conf")]) == 2
     assert message in capsys.readouterr().err
-    assert not (tmp_path / "r.conf").exists()
+    assert not (tmp_path / "r.conf").exists() and not (tmp_path / "new.nk").exists()
