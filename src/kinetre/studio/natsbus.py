@@ -121,6 +121,69 @@ def server_config(rooms: dict[str, str], port: int, host: str = "127.0.0.1", max
             "authorization {\n  users = [\n" + ",\n".join(users) + "\n  ]\n}\n")
 
 
+class _Resumed:
+    """An awaitable that goes on with a coroutine which already ran up to its first suspension (`waiting`,
+    the future it yielded): `await _Resumed(coro, waiting)` ends as `await coro` would have."""
+
+    def __init__(self, coro, waiting):
+        self.coro, self.waiting = coro, waiting
+
+    def __await__(self):
+        value = self.waiting
+        while True:
+            try:
+                sent = yield value
+            except BaseException as exc:  # e.g. cancelled: passed on into the coroutine
+                try:
+                    value = self.coro.throw(exc)
+                except StopIteration as stop:
+                    return stop.value
+                continue
+            try:
+                value = self.coro.send(sent)
+            except StopIteration as stop:
+                return stop.value
+
+
+class _Delivery(asyncio.Queue):
+    """A nats-py subscription's message queue that hands each message on as the connection's reader parses
+    it, instead of keeping it for a task of the subscription's own (one event-loop iteration later)."""
+
+    def __init__(self, sub, take):
+        super().__init__()
+        self.sub, self.take = sub, take
+
+    def put_nowait(self, msg) -> None:
+        self.sub._pending_size -= len(msg.data)  # counted as pending by the reader just before
+        try:
+            self.take(msg)
+        except Exception:  # one bad message must not stop the connection's reader
+            log.exception("delivering %s", msg.subject)
+
+
+async def subscribe_direct(nc, subject: str, take):
+    """A nats-py subscription whose messages reach `take(msg)` (a plain function) in the connection's reader.
+
+    nats-py (2.x) gives each callback subscription a task that awaits the subscription's queue, so every
+    message would wait one more event-loop iteration, behind everything else ready then; a subscription
+    without a callback has only the queue (`Subscription._pending_queue`, filled by the reader with
+    `put_nowait`), which is replaced here by one that delivers at once. A nats-py without that queue gets
+    an ordinary callback subscription.
+    """
+    sub = await nc.subscribe(subject)
+    old = getattr(sub, "_pending_queue", None)
+    if not isinstance(old, asyncio.Queue):
+        await sub.unsubscribe()
+
+        async def call(msg) -> None:
+            take(msg)
+        return await nc.subscribe(subject, cb=call)
+    sub._pending_queue = _Delivery(sub, take)
+    while not old.empty():  # none normally: the server has not seen the SUB yet
+        sub._pending_queue.put_nowait(old.get_nowait())
+    return sub
+
+
 @dataclass
 class BusCounters:
     published: int = 0
@@ -148,9 +211,7 @@ class NatsChannels:
         self._subs: dict[str, object] = {}  # wire pattern → nats subscription (or the task creating it)
         self._local: dict[str, list[Subscription]] = {}  # wire pattern → our subscriptions
         self._newest: dict[str, tuple[int, float]] = {}  # subject → (seq, t) last delivered
-        self._outbox: list[tuple[str, bytes]] = []
-        self._pending: asyncio.Event | None = None
-        self._sender: asyncio.Task | None = None
+        self._finishing: set[asyncio.Task] = set()  # publishes that had to wait for the connection's flusher
 
     @classmethod
     async def connect(cls, url: str, room: str = "main", token: str | None = None, name: str = "kinetre",
@@ -204,8 +265,6 @@ class NatsChannels:
                           "(the NATS user is the room's name, its password the room's token)")
             raise NetworkError(f"{url}: {reason}") from None
         self.nc, self.url = nc, url
-        self._pending = asyncio.Event()
-        self._sender = asyncio.get_running_loop().create_task(self._send_loop())
         for wire in list(self._local):
             self._subs[wire] = asyncio.get_running_loop().create_task(self._nats_subscribe(wire))
 
@@ -221,24 +280,38 @@ class NatsChannels:
 
     # --- publishing -------------------------------------------------------------------------------------
     def publish(self, frame: Frame) -> None:
+        """Hand the frame to the connection now, in the caller's own call (no task of ours in between).
+
+        nats-py's `publish` is a coroutine that, while connected, does not suspend: it appends the PUB
+        command to the connection's pending buffer and wakes the connection's flusher task, which writes
+        everything pending in one go. So it is run here to completion synchronously; only when it does
+        suspend (the pending buffer is over its `pending_size` and it waits for the flusher) is the rest left
+        to a task, the command being queued already, so order is kept either way.
+        """
         if self.nc is None or not self.nc.is_connected:
             self.counters.offline += 1
             return
-        self._outbox.append((self.wire(frame.subject), pack(frame)))
+        subject = self.wire(frame.subject)
+        call = self.nc.publish(subject, pack(frame))
+        try:
+            waiting = call.send(None)
+        except StopIteration:
+            self.counters.published += 1
+            return
+        except Exception as exc:  # closed or reconnecting: live data is dropped, not replayed
+            self.counters.offline += 1
+            log.debug("publish on %s failed: %s", subject, exc)
+            return
         self.counters.published += 1
-        self._pending.set()
+        self._finishing.add(asyncio.get_running_loop().create_task(self._finish(_Resumed(call, waiting), subject)))
 
-    async def _send_loop(self) -> None:
-        while True:
-            await self._pending.wait()
-            self._pending.clear()
-            batch, self._outbox = self._outbox, []
-            for subject, payload in batch:
-                try:
-                    await self.nc.publish(subject, payload)
-                except Exception as exc:  # closed or reconnecting: live data is dropped, not replayed
-                    self.counters.offline += 1
-                    log.debug("publish on %s failed: %s", subject, exc)
+    async def _finish(self, call, subject: str) -> None:
+        try:
+            await call
+        except Exception as exc:
+            log.debug("publish on %s failed: %s", subject, exc)
+        finally:
+            self._finishing.discard(asyncio.current_task())
 
     # --- subscribing ------------------------------------------------------------------------------------
     def subscribe(self, *patterns: str, urgent: tuple[str, ...] = ()) -> Subscription:
@@ -254,7 +327,7 @@ class NatsChannels:
             self._subs[wire] = asyncio.get_running_loop().create_task(self._nats_subscribe(wire))
 
     async def _nats_subscribe(self, wire: str) -> None:
-        async def deliver(msg) -> None:
+        def deliver(msg) -> None:
             frame = unpack(self.local(msg.subject), msg.data)
             if frame is None:
                 return
@@ -271,7 +344,7 @@ class NatsChannels:
             for sub in self._local.get(wire, ()):
                 sub._offer(frame)
 
-        self._subs[wire] = await self.nc.subscribe(wire, cb=deliver)
+        self._subs[wire] = await subscribe_direct(self.nc, wire, deliver)
 
     async def ready(self, timeout: float = 5.0) -> None:
         """Wait until every subscription is registered with the server; raises NetworkError if one was refused."""
@@ -354,7 +427,6 @@ class NatsChannels:
     async def close(self) -> None:
         if self.nc is None:
             return
-        self._sender.cancel()
         try:
             await self.nc.drain()
         except Exception:

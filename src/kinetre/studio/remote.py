@@ -304,4 +304,10 @@ def run_scene(mesh_path: str | None, url: str, room: str = "main", token: str | 
     def started(studio) -> None:
         print(f"Kinetre scene: {studio.scene.name} ({studio.scene.graph.node_count} nodes) in room {room!r} "
               f"on {url} (Ctrl+C to stop)", flush=True)
-    asyncio.run(serve_scene(mesh_path, url, room, token, nodes, sample_motion, started, nkey))
+    main = serve_scene(mesh_path, url, room, token, nodes, sample_motion, started, nkey)
+    try:  # uvloop, as uvicorn runs the studio (uvicorn[standard] installs it): each message's hops are cheaper
+        import uvloop
+    except ImportError:
+        asyncio.run(main)
+    else:
+        uvloop.run(main)

@@ -46,13 +46,32 @@ class User:
     """One capture source (a page's webcam, or the sample-motion player)."""
 
     client: str
-    latest: Skeleton | None = None  # world frame, newest received
+    parsed: Skeleton | None = None  # world frame, newest parsed (see `latest`)
+    raw: bytes | None = None  # a newer frame not parsed yet (a user who does not drive the solve)
     seq: int = -1
     t: float = 0.0
     frames: int = 0
     used: int = -1  # seq of the frame the last solve used
     bind: Skeleton | None = None  # mesh frame, the pose at possession (None = not possessing)
     subset: str | list | None = None
+
+    @property
+    def latest(self) -> Skeleton | None:
+        """The newest frame (world frame). Parsed on first use: of the many users sending frames only the
+        possessing ones drive the solve; the others' frames are needed only when one fits or possesses. A
+        frame that does not parse leaves the last good one (it came through a server that validated it, so
+        only a foreign publisher in the room can send one)."""
+        if self.raw is not None:
+            raw, self.raw = self.raw, None
+            try:
+                self.parsed = parse_skeleton(parse_message(raw))[2]
+            except ProtocolError:
+                pass
+        return self.parsed
+
+    @latest.setter
+    def latest(self, skeleton: Skeleton | None) -> None:
+        self.parsed, self.raw = skeleton, None
 
     def masked(self, skeleton: Skeleton) -> Skeleton:
         """Joints outside the user's subset count as untracked, so they neither attach nor pull."""
@@ -166,20 +185,27 @@ class Scene:
     def receive(self, frame: Frame) -> None:
         """A skeleton frame from the hub (already validated by the server that published it)."""
         client = frame.subject.rsplit(".", 1)[-1]
+        user = self.user(client)
+        skeleton = None
         if frame.value is not None:
             seq, t, skeleton = frame.value  # decoded by the publisher in this process
+        elif user.bind is None:
+            seq, t = frame.seq, frame.t  # the bus envelope's; the JSON is parsed when needed (User.latest)
         else:
             try:
                 seq, t, skeleton = parse_skeleton(parse_message(frame.data))
             except ProtocolError:
                 return
-        user = self.user(client)
         if seq <= user.seq and user.frames:
             self.late += 1
             return  # late or duplicate frame: skip, never reorder
         if user.bind is not None and user.frames and user.used != user.seq:
             self.superseded += 1  # merged latest-wins: the solve only ever takes the newest
-        user.latest, user.seq, user.t = skeleton, seq, t
+        if skeleton is None:
+            user.raw = frame.data
+        else:
+            user.latest = skeleton
+        user.seq, user.t = seq, t
         user.frames += 1
         if user.bind is not None:
             self._dirty.set()

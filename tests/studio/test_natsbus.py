@@ -1,0 +1,158 @@
+"""The NATS bus's own hot path over a real nats-server: frames published in the caller's call (also when
+nats-py has to wait for its flusher), live subscriptions delivered in the connection's reader, and the
+scene parsing only the frames it needs (users who do not possess are parsed when they fit or possess)."""
+import asyncio
+import json
+
+import numpy as np
+import pytest
+from studio.nats_server import ROOMS, NatsServer
+from studio.studio_ws import frame_message
+
+from kinetre.studio.app import data_path, prepare_mesh
+from kinetre.studio.channels import Frame, Hub
+from kinetre.studio.natsbus import NatsChannels, _Delivery, _Resumed
+from kinetre.studio.scene import Scene
+
+
+@pytest.fixture(scope="module")
+def nats():
+    with NatsServer() as server:
+        yield server
+
+
+async def pair(url):
+    sender = await NatsChannels.connect(url, "a", ROOMS["a"], name="sender")
+    receiver = await NatsChannels.connect(url, "a", ROOMS["a"], name="receiver")
+    return sender, receiver
+
+
+async def collect(sub, count, timeout=10.0):
+    got = []
+    while len(got) < count:
+        frame = await sub.next(timeout)
+        if frame is None:
+            break
+        got.append(frame)
+    return got
+
+
+def test_frames_reach_the_wire_in_the_publishers_call(nats):
+    """No task of ours between publish and the connection: nats-py's pending buffer holds the frame when
+    publish returns, and the receiver's subscription gets every frame, in order, from the reader."""
+    async def go():
+        sender, receiver = await pair(nats.url)
+        sub = receiver.subscribe("kinetre.command.x")  # queued subject: every frame is kept
+        await receiver.ready()
+        assert isinstance(receiver._subs["kinetre.a.command.x"]._pending_queue, _Delivery)
+        before = sender.nc.stats["out_msgs"]
+        for seq in range(1, 51):
+            sender.publish(Frame("kinetre.command.x", seq, float(seq), b"frame %d" % seq))
+        assert sender.nc.stats["out_msgs"] - before == 50 and sender.counters.published == 50
+        got = await collect(sub, 50)
+        await sender.close()
+        await receiver.close()
+        return got
+    got = asyncio.run(go())
+    assert [f.seq for f in got] == list(range(1, 51))
+    assert [f.data for f in got] == [b"frame %d" % s for s in range(1, 51)]
+
+
+def test_a_publish_that_must_wait_for_the_flusher_still_arrives_in_order(nats):
+    """With nats-py's pending buffer over its limit every publish waits for the flusher: the rest of the
+    call goes on in a task, and nothing is lost or reordered."""
+    async def go():
+        sender, receiver = await pair(nats.url)
+        sub = receiver.subscribe("kinetre.command.y")
+        await receiver.ready()
+        sender.nc._max_pending_size = 1  # every PUB is over the limit: nats-py forces a flush and waits
+        for seq in range(1, 31):
+            sender.publish(Frame("kinetre.command.y", seq, float(seq), bytes(1000)))
+        waited = len(sender._finishing)
+        got = await collect(sub, 30)
+        await asyncio.sleep(0.1)
+        left = len(sender._finishing)
+        await sender.close()
+        await receiver.close()
+        return waited, left, got, sender.counters
+    waited, left, got, counters = asyncio.run(go())
+    assert waited > 0 and left == 0  # it did have to wait, and every waiting publish finished
+    assert [f.seq for f in got] == list(range(1, 31)) and counters.published == 30 and counters.offline == 0
+
+
+def test_resumed_coroutine_ends_as_the_coroutine_would():
+    async def later(x):
+        await asyncio.sleep(0.01)
+        return 2 * x
+
+    async def failing():
+        await asyncio.sleep(0.01)
+        raise ValueError("nope")
+
+    async def go():
+        call = later(21)
+        waiting = call.send(None)  # runs up to the sleep
+        value = await _Resumed(call, waiting)
+        call = failing()
+        waiting = call.send(None)
+        with pytest.raises(ValueError, match="nope"):
+            await _Resumed(call, waiting)
+        return value
+    assert asyncio.run(go()) == 42
+
+
+def test_live_subjects_are_latest_wins_over_the_direct_subscription(nats):
+    """A slow reader of a live subject gets the newest frame only; late frames are dropped and counted."""
+    async def go():
+        sender, receiver = await pair(nats.url)
+        sub = receiver.subscribe("kinetre.skeleton.*")
+        await receiver.ready()
+        for seq in (1, 2, 3, 2):
+            sender.publish(Frame("kinetre.skeleton.u", seq, float(seq), b"{}"))
+        await sender.nc.flush()
+        await asyncio.sleep(0.2)
+        first = await sub.next(1.0)
+        again = await sub.next(0.2)
+        await sender.close()
+        await receiver.close()
+        return first, again, receiver.counters
+    first, again, counters = asyncio.run(go())
+    assert first.seq == 3 and again is None
+    assert counters.received == 4 and counters.late == 1 and counters.gaps == 0
+
+
+def test_scene_parses_a_users_frames_only_when_needed(walk):
+    """Frames off the bus (no decoded value) of a user who does not possess are kept as bytes; fit and
+    possess parse the newest; a frame that does not parse leaves the last good one; a possessing user's
+    frames are parsed on arrival."""
+    mesh, graph = prepare_mesh(str(data_path("spot.obj")), 32)
+
+    async def go():
+        scene = Scene(Hub(), mesh, graph, "spot.obj")
+
+        def send(seq, skeleton=None, data=None):
+            data = data if data is not None else frame_message(seq, skeleton, t=float(seq)).encode()
+            scene.receive(Frame("kinetre.skeleton.u", seq, float(seq), data))
+        send(1, walk[0])
+        user = scene.users["u"]
+        assert user.raw is not None and user.parsed is None and user.frames == 1
+        send(2, walk[5])
+        np.testing.assert_allclose(user.latest.positions, walk[5].positions, atol=1e-9)
+        assert user.raw is None
+        send(3, data=b'{"type": "skeleton", "seq": 3}')  # not a skeleton: the last good frame stays
+        assert user.frames == 3 and user.seq == 3
+        np.testing.assert_allclose(user.latest.positions, walk[5].positions, atol=1e-9)
+        send(2, walk[9])  # late: dropped before anything is kept
+        assert scene.late == 1 and user.raw is None
+        send(4, walk[10])
+        scene.fit("u")
+        await scene.possess("u")
+        np.testing.assert_allclose(user.latest.positions, walk[10].positions, atol=1e-9)
+        send(5, walk[12])  # possessing: parsed now, it drives the next solve
+        assert user.raw is None
+        np.testing.assert_allclose(user.latest.positions, walk[12].positions, atol=1e-9)
+        send(6, data=b"not json")  # a possessing user's bad frame is dropped, not counted
+        assert user.seq == 5 and user.frames == 5
+        pose = await scene.solve_once()
+        return pose
+    assert asyncio.run(go()) is not None
