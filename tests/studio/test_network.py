@@ -323,3 +323,23 @@ def test_page_says_scene_lost_and_recovers(network):
     assert "scene lost" not in result["before"]["status"] and "connected as" in result["before"]["status"]
     assert "scene lost" in result["lost"]["status"] and "scene lost" in result["lost"]["message"]
     assert "scene lost" not in result["after"]["status"] and result["after"]["meshId"] is not None
+
+
+def test_gateway_answers_bad_messages_and_forwards_good_frames(network, walk):
+    """The gateway parses each page message once: malformed ones are answered with the reason (nothing goes
+    to the scene), a good skeleton frame reaches the scene, which counts it for that page."""
+    async def go():
+        async with StudioClient(network["url"], A) as c:
+            await c.send("not json")
+            await c.send({"type": "skeleton", "seq": 1, "t": 1.0})
+            await c.send({"type": "dance"})
+            await c.wait(lambda c: sum(m["type"] == "error" for m in c.messages) >= 3, 30)
+            errors = [m["message"] for m in c.messages if m["type"] == "error"]
+            await c.send(frame_message(7, walk[3], t=time.time() * 1000))
+            await c.wait(lambda c: (c.me() or {}).get("frames") == 1, 30)
+            await c.send({"type": "stats"})
+            await c.wait(lambda c: any(m["type"] == "stats" for m in c.messages), 30)
+            return errors, next(m for m in c.messages if m["type"] == "stats")
+    errors, stats = asyncio.run(go())
+    assert "not JSON" in errors[0] and "positions" in errors[1] and "unknown message type 'dance'" in errors[2]
+    assert stats["malformed"] == 3 and stats["received"] == 1 and stats["last_seq"] == 7

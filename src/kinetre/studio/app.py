@@ -140,11 +140,12 @@ class Studio:
     _takes: itertools.count = field(default_factory=lambda: itertools.count(1))
 
     # --- messages from a client ------------------------------------------------------------------------
-    async def handle(self, client: str, text: str | bytes) -> None:
-        """Apply one client message; malformed ones are answered with an error, never fatal."""
+    async def handle(self, client: str, text: str | bytes, msg: dict | None = None) -> None:
+        """Apply one client message (`msg`: `text` already parsed); malformed ones are answered with an error,
+        never fatal."""
         stats = self.stats[client]
         try:
-            msg = parse_message(text)
+            msg = parse_message(text) if msg is None else msg
             kind = msg["type"]
             if kind == "skeleton":
                 seq, t, skeleton = parse_skeleton(msg)

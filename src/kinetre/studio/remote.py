@@ -140,14 +140,14 @@ class GatewayStudio(Studio):
 
     async def handle(self, client: str, text: str | bytes) -> None:
         try:
-            kind = parse_message(text)["type"]
+            msg = parse_message(text)
         except ProtocolError:
-            kind = None  # the base class answers the error
-        if kind in FORWARD:
+            msg = None  # the base class answers the error
+        if msg is not None and msg["type"] in FORWARD:
             raw = text.encode() if isinstance(text, str) else text
             self.hub.publish(Frame(_command(client), 0, now_ms(), raw))
             return
-        await super().handle(client, text)
+        await super().handle(client, text, msg)  # parsed once: skeleton frames are most of the traffic
 
     async def mesh_json(self, mesh_id: int) -> bytes | None:
         if mesh_id != self.scene.mesh_id:
