@@ -647,6 +647,18 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: list[str] | None = None) -> int:
+    """Run the command line `argv` (default: this process's own, which then exits with the result)."""
+    try:
+        return _run(argv)
+    finally:
+        if argv is None:
+            # The process exits next. Its shutdown collections would walk every object still alive (numba's
+            # typing tables, ~160k objects after an animate): 0.3-0.7 s of a 3 s command. Those collections
+            # skip frozen objects; atexit handlers, output flushing and module teardown run as usual.
+            gc.freeze()
+
+
+def _run(argv: list[str] | None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
     try:

@@ -9,6 +9,7 @@ import warnings
 import numpy as np
 
 from ..errors import BadMeshError
+from ..lazy import import_trimesh
 from .mesh import Mesh, bounding_box
 from .clean import clean
 from .normals import normals_and_area
@@ -41,7 +42,7 @@ def load_mesh(path: str | os.PathLike) -> Mesh:
     BadMeshError
         Missing or unreadable file, no faces (a point cloud), NaN/Inf coordinates, zero area.
     """
-    import trimesh
+    trimesh = import_trimesh()
 
     path = os.fspath(path)
     if not os.path.exists(path):
@@ -71,7 +72,7 @@ def load_mesh(path: str | os.PathLike) -> Mesh:
 
 def mesh_from_trimesh(loaded, source: str = "") -> Mesh:
     """Clean a trimesh `Trimesh`/`Scene`/`PointCloud` into a `Mesh` (see `load_mesh`)."""
-    import trimesh
+    trimesh = import_trimesh()
 
     label = source or "mesh"
     if isinstance(loaded, trimesh.Scene):
