@@ -30,8 +30,8 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
-from numba import njit
 
+from ..jit import njit
 from ..skeleton.models import KINECT20
 from .bonemap import BoneMap
 from .load import Avatar

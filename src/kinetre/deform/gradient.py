@@ -7,8 +7,8 @@ The gradient comes out in the coordinate layout of `krylov.py` (R_j[a, b] at 12 
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
 
+from ..jit import njit
 from .normal_equations import _ROT_P, _ROT_Q
 
 

@@ -23,8 +23,8 @@ not a pass over K.
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
 
+from ..jit import njit
 from .normal_equations import rigidity_block_jacobian
 
 COORDINATE, BLOCK_JACOBI, TWO_LEVEL, ADDITIVE, V_CYCLE, HALF_CYCLE = 0, 1, 2, 3, 4, 5

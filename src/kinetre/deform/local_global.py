@@ -28,8 +28,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from numba import njit
 
+from ..jit import njit
 from .gradient import energy_gradient
 from .krylov import _coordinate_solve, _node_solve, local_blocks, node_factors
 from .normal_equations import _ROT_P, _ROT_Q

@@ -12,8 +12,8 @@ iterations would be most of it.
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
 
+from ..jit import njit
 from .gradient import energy_gradient
 from .krylov import COORDINATE, local_blocks, node_factors, pcg, stretch_curvature
 

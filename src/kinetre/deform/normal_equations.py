@@ -12,9 +12,9 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from numba import njit
 from scipy.sparse import csc_matrix, csr_matrix, identity
 
+from ..jit import njit
 from .constraints import PointConstraints
 from .energy import EnergyWeights
 from .jacobian import (ROT_PAIRS, constraint_jacobian, regularization_jacobian, rigidity_jacobian,

@@ -2,9 +2,9 @@
 from __future__ import annotations
 
 import numpy as np
-from numba import njit, prange
 
 from ..graph.graph import DeformationGraph
+from ..jit import njit, prange
 from ..mesh.mesh import Mesh
 from .pose import GraphPose
 

@@ -27,11 +27,11 @@ from pathlib import Path
 
 import numpy as np
 import pygltflib as gl
-from numba import njit
 
 from ..deform.pose import GraphPose
 from ..errors import ExportError
 from ..graph.graph import DeformationGraph
+from ..jit import njit
 from ..lazy import import_trimesh
 from ..mesh.mesh import Mesh
 

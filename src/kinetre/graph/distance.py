@@ -7,7 +7,7 @@ Since D ≥ ‖p − q‖, every neighbour with D < R lies within Euclidean R (w
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
+from ..jit import njit
 
 
 def orientation_aware_distance(p: np.ndarray, n_p: np.ndarray, q: np.ndarray, n_q: np.ndarray) -> np.ndarray:

@@ -9,9 +9,9 @@ from __future__ import annotations
 import warnings
 
 import numpy as np
-from numba import njit
 
 from ..errors import BadGraphError
+from ..jit import njit
 from ..mesh.mesh import bounding_box
 from ..mesh.normals import edges_and_cross
 from .distance import distance_5d

@@ -17,8 +17,8 @@ same nodes and weights as a plain search over every node.
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
 
+from ..jit import njit
 from .distance import distance_5d
 
 K = 4

@@ -10,8 +10,8 @@ them would change the mesh. The result is the mesh trimesh's cleanup gives eithe
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
 
+from ..jit import njit
 from .normals import edges_and_cross
 
 # trimesh's default tolerance (tol.merge) for welding and degenerate faces

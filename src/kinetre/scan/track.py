@@ -26,8 +26,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from numba import njit
 
+from ..jit import njit
 from .features import feature_motion
 from .frames import Intrinsics
 from .recent import RecentFrames, remembered

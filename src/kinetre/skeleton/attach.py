@@ -11,11 +11,11 @@ from dataclasses import dataclass
 from functools import lru_cache
 
 import numpy as np
-from numba import njit
 from scipy.spatial import cKDTree
 
 from ..deform.constraints import PointConstraints
 from ..graph.graph import DeformationGraph
+from ..jit import njit
 from .models import Skeleton
 
 RINGS = 4
