@@ -35,6 +35,8 @@ log = logging.getLogger("kinetre.studio")
 SKELETONS = "kinetre.skeleton.*"
 TRANSFORMS = "kinetre.transforms"
 STATE = "kinetre.state"
+GATHER_S = 0.010  # longest wait for another possessing user's frame that is due (see Scene._gather)
+GATHER_SLACK_S = 0.002  # arrival jitter allowed around a user's expected frame time
 
 
 def now_ms() -> float:
@@ -52,6 +54,8 @@ class User:
     t: float = 0.0
     frames: int = 0
     used: int = -1  # seq of the frame the last solve used
+    arrived: float = 0.0  # monotonic time the newest frame arrived (s)
+    period: float = 0.0  # running mean of the time between its frames (s)
     bind: Skeleton | None = None  # mesh frame, the pose at possession (None = not possessing)
     subset: str | list | None = None
 
@@ -207,6 +211,11 @@ class Scene:
             user.latest = skeleton
         user.seq, user.t = seq, t
         user.frames += 1
+        arrived = time.monotonic()
+        if user.arrived:
+            gap = min(arrived - user.arrived, 1.0)
+            user.period = gap if not user.period else user.period + 0.1 * (gap - user.period)
+        user.arrived = arrived
         if user.bind is not None:
             self._dirty.set()
             self.solver.newer_frame()  # a running jump solve yields to this frame
@@ -282,7 +291,7 @@ class Scene:
         try:
             while True:
                 await self._dirty.wait()
-                self._dirty.clear()
+                await self._gather()
                 try:
                     await self.solve_once()
                 except Exception as exc:  # one bad frame must not stop the scene for everybody
@@ -292,6 +301,40 @@ class Scene:
             for task in helpers:
                 task.cancel()
             sub.close()
+
+    async def _gather(self) -> None:
+        """Before solving, wait (briefly) for the other possessing users' frames that are due now.
+
+        Every solve takes all possessors' newest frames. When one user's frame arrives and another's is due
+        within half a solve (cameras ticking together, or by chance), solving at once would make that frame
+        wait for the whole running solve and then its own; waiting for it costs the first frame only the
+        gap, and one solve serves both. A user is waited for only while its next frame is expected (from its
+        own frame period) within half a recent solve's time (at most `GATHER_S`) of the first new frame's
+        arrival, and not once it is overdue (a user who stopped sending delays nothing).
+        """
+        while True:
+            self._dirty.clear()  # the frames in so far go into this solve
+            deadline = self._gather_deadline(time.monotonic())
+            if deadline is None:
+                return
+            try:
+                await asyncio.wait_for(self._dirty.wait(), deadline - time.monotonic())
+            except asyncio.TimeoutError:
+                return
+
+    def _gather_deadline(self, now: float) -> float | None:
+        users = [self.users[c] for c in self.possessors if c in self.users]
+        fresh = [u.arrived for u in users if u.used != u.seq]
+        if not fresh or len(fresh) == len(users):
+            return None
+        solve_s = float(np.median(self.solve_ms[-15:])) / 1000 if self.solve_ms else GATHER_S
+        # frames a and b arriving g apart, a solve taking S: solving a at once ends b's wait at 2S - g, waiting
+        # for b ends both at g + S (and spares a solve): better while g < S / 2
+        limit = min(fresh) + min(GATHER_S, solve_s / 2)
+        due = [u.arrived + u.period for u in users if u.used == u.seq and u.period]
+        if not any(now - GATHER_SLACK_S <= d <= limit for d in due):
+            return None
+        return limit  # or sooner: every user's new frame wakes the wait
 
     async def _heartbeat(self, period: float = 1.0) -> None:
         """Re-publish the state when users came or frame counts moved (pages show who is connected)."""
