@@ -297,15 +297,17 @@ def _append(doc: gl.GLTF2, blob: bytearray, array: np.ndarray, gltf_type: str, c
             normalized: bool = False, minmax: bool = False, target: int | None = None) -> int:
     """Append `array` to the buffer as a new bufferView + accessor; return the accessor index."""
     blob.extend(b"\0" * (-len(blob) % _ALIGN))
-    data = np.ascontiguousarray(array).tobytes()
-    doc.bufferViews.append(gl.BufferView(buffer=0, byteOffset=len(blob), byteLength=len(data), target=target))
-    blob.extend(data)
+    data = np.ascontiguousarray(array)
+    doc.bufferViews.append(gl.BufferView(buffer=0, byteOffset=len(blob), byteLength=data.nbytes, target=target))
+    blob += memoryview(data).cast("B")  # one copy, into the buffer (tobytes would make another)
     acc = gl.Accessor(bufferView=len(doc.bufferViews) - 1, byteOffset=0, componentType=component,
                       normalized=normalized or None, count=int(array.shape[0]), type=gltf_type)
     if minmax:
-        flat = array.reshape(array.shape[0], -1)
-        acc.min = flat.min(axis=0).tolist()  # Python floats for float data, ints for integer data
-        acc.max = flat.max(axis=0).tolist()
+        # column by column: numpy's min(axis=0) over rows of 3 or 4 is ~20x slower (0.1 s for 386k normals);
+        # .item() gives Python floats for float data, ints for integer data
+        columns = array.reshape(array.shape[0], -1).T
+        acc.min = [column.min().item() for column in columns]
+        acc.max = [column.max().item() for column in columns]
     doc.accessors.append(acc)
     return len(doc.accessors) - 1
 
