@@ -3,6 +3,8 @@ nats-py has to wait for its flusher), live subscriptions delivered in the connec
 scene parsing only the frames it needs (users who do not possess are parsed when they fit or possess)."""
 import asyncio
 import json
+import time
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
@@ -177,41 +179,59 @@ class SlowSolver:
         return GraphPose.identity(self.graph.node_count)
 
 
-def run_two_users(walk, lag_s, gap_after=0.033):
-    """Two possessing users at 30 Hz; in the last tick the second user's frame comes `lag_s` after the
-    first's. Returns the frames each solve took (joint 0's x, which tells the frames apart)."""
+def run_two_users(walk, monkeypatch, offset_s):
+    """Two possessing users at 30 Hz, the second's frames `offset_s` after the first's on the scene's clock
+    (faked, so the periods it learns are exact). Returns the frames each solve took after a second of that
+    (joint 0's x tells the frames apart), the newest frames' x, and what the scene does when only the
+    first user's frames go on."""
+    import kinetre.studio.scene as scene_module
     mesh, graph = prepare_mesh(str(data_path("spot.obj")), 32)
+    clock = [1000.0]
+    monkeypatch.setattr(scene_module, "time", SimpleNamespace(monotonic=lambda: clock[0],
+                                                               perf_counter=time.perf_counter, time=time.time))
 
     async def go():
         solver = SlowSolver(graph)
         scene = Scene(Hub(), mesh, graph, "spot.obj", solver=solver)
-        task = asyncio.get_running_loop().create_task(scene.run())
         seq = [0]
 
         def send(user, skeleton):
             seq[0] += 1
-            scene.receive(Frame(f"kinetre.skeleton.{user}", seq[0], float(seq[0]), b"", (seq[0], float(seq[0]), skeleton)))
+            scene.receive(Frame(f"kinetre.skeleton.{user}", seq[0], float(seq[0]), b"", (seq[0], float(seq[0]),
+                                                                                           skeleton)))
         for user in ("a", "b"):
             send(user, walk[0])
             await scene.possess(user)
-        for k in range(1, 31):  # both in step at 30 Hz for a second: the scene learns their period
+
+        def tick(k):
+            clock[0] = 1000.0 + k / 30
             send("a", walk[k])
+            clock[0] += offset_s
             send("b", walk[k])
-            await asyncio.sleep(gap_after)
+        for k in range(1, 31):
+            tick(k)
+        task = asyncio.get_running_loop().create_task(scene.run())
+        await asyncio.sleep(0.1)  # one solve of the newest frames
         solver.solved.clear()
+        clock[0] = 1000.0 + 31 / 30  # the next tick
         send("a", walk[40])
-        await asyncio.sleep(lag_s)
+        for _ in range(3):
+            await asyncio.sleep(0)  # the scene sees it and decides whether to wait
+        clock[0] += offset_s
         send("b", walk[40])
         await asyncio.sleep(0.1)
+        clock[0] += 0.5  # the second user stopped: the first's next frame is not held for it
+        send("a", walk[41])
+        later = scene._gather_deadline(clock[0])
         task.cancel()
-        return solver.solved, round(float(walk[40].positions[0, 0]), 3)
+        return solver.solved, round(float(walk[40].positions[0, 0]), 3), later
     return asyncio.run(go())
 
 
-def test_a_solve_waits_for_a_possessors_frame_that_is_due(walk):
-    """Frames of two possessors arriving 3 ms apart (half a solve is 10 ms) are solved together, once; a frame
-    due later than half a solve is not waited for (its own solve follows)."""
-    solved, x = run_two_users(walk, 0.003)
-    assert solved[0] == [x, x] and len(solved) == 1
-    solved, x = run_two_users(walk, 0.025)
+def test_a_solve_waits_for_a_possessors_frame_that_is_due(walk, monkeypatch):
+    """Frames of two possessors in step are solved together, once; a user whose frame is not due within half
+    a solve (out of step, or stopped sending) is not waited for: its frame gets a solve of its own."""
+    solved, x, later = run_two_users(walk, monkeypatch, 0.003)
+    assert solved == [[x, x]] and later is None
+    solved, x, _ = run_two_users(walk, monkeypatch, 0.016)  # half a period out of step; a solve takes 20 ms
     assert solved[0][0] == x and solved[0][1] != x and solved[1] == [x, x]

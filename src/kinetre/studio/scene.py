@@ -36,7 +36,7 @@ SKELETONS = "kinetre.skeleton.*"
 TRANSFORMS = "kinetre.transforms"
 STATE = "kinetre.state"
 GATHER_S = 0.010  # longest wait for another possessing user's frame that is due (see Scene._gather)
-GATHER_SLACK_S = 0.002  # arrival jitter allowed around a user's expected frame time
+GATHER_SLACK_S = 0.005  # how late a user's frame may be (arrival jitter) and still be waited for
 
 
 def now_ms() -> float:
