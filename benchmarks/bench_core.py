@@ -55,18 +55,22 @@ def bench_build_graph():
 # bench_local_global) and the exact reference. Designs that long lost (additive, coordinate alone, CG tolerance
 # and backtracking variants) are still settings but no longer timed here: the bench stays a few minutes.
 DESIGNS = {
-    "pcg_half_cycle": SolverSettings(),
-    "pcg_half_cycle_gauss_newton_blocks": SolverSettings(curvature=False),
-    "pcg_two_level": SolverSettings(preconditioner="two_level"),
-    "pcg_v_cycle": SolverSettings(preconditioner="v_cycle"),
-    "pcg_block_jacobi": SolverSettings(preconditioner="block_jacobi"),
+    "pcg_adaptive": SolverSettings(),
+    "pcg_adaptive_no_coarse": SolverSettings(coarse_regions=0),
+    "pcg_half_cycle": SolverSettings(preconditioner="half_cycle", coarse_regions=0),
+    "pcg_half_cycle_gauss_newton_blocks": SolverSettings(preconditioner="half_cycle", coarse_regions=0,
+                                                         curvature=False),
+    "pcg_two_level": SolverSettings(preconditioner="two_level", coarse_regions=0),
+    "pcg_two_level_coarse": SolverSettings(preconditioner="two_level"),
+    "pcg_v_cycle": SolverSettings(preconditioner="v_cycle", coarse_regions=0),
+    "pcg_block_jacobi": SolverSettings(preconditioner="block_jacobi", coarse_regions=0),
     "local_global": SolverSettings(method="local_global"),
     "exact_gn": SolverSettings(method="exact"),
     "exact_reuse_factor": SolverSettings(method="exact", reuse_factor=True),
 }
 # what a solve carries over to the next frame, restored between the timed runs of one frame
 _SOLVER_STATE = ("_lam", "_lam_exact", "_last_energy", "_jump_left", "_active_key", "_linear_data", "_factored",
-                 "_diag")
+                 "_diag", "_cg_per_step", "_coarse_on")
 
 
 def timed_solve(rig, frame, repeats):

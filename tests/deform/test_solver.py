@@ -249,14 +249,16 @@ def test_coordinate_solve_inverts_the_shifted_k(armadillo, backend):
     # CG run long enough solves H x = r, with H p taken from the two-level preconditioner's by-products
     node_fac = np.zeros((n, 12, 12))
     krylov.node_factors(k_blocks, rot, rig, ne.bridges, damp, node_fac)
+    no_coarse = (np.zeros((0, 0)), np.zeros(n, np.int64), np.zeros((n, 3)))
     for kind in (krylov.TWO_LEVEL, krylov.V_CYCLE, krylov.HALF_CYCLE):
-        x, its, converged = krylov.pcg(kind, fac, *k, rot, rig, ne.bridges, damp, node_fac, r, 200, 1e-9)
+        x, its, converged = krylov.pcg(kind, fac, *k, rot, rig, ne.bridges, damp, node_fac, no_coarse, r, 200, 1e-9)
         krylov._hessian_times(*k, rot, rig, ne.bridges, damp, split.shift, x, h_out)
         assert converged and np.abs(h_out - r).max() < 1e-7 * np.abs(r).max(), (kind, its)
     # the preconditioners that hand H z back to CG: it is H z
     z, hz, t1, t2 = (np.empty(12 * n) for _ in range(4))
     for kind in (krylov.TWO_LEVEL, krylov.HALF_CYCLE):
-        assert krylov._precondition(kind, fac, *k, rot, rig, ne.bridges, damp, node_fac, r, z, hz, t1, t2, work)
+        assert krylov._precondition(kind, fac, *k, rot, rig, ne.bridges, damp, node_fac, no_coarse, r, z, hz, t1, t2,
+                                    work)
         krylov._hessian_times(*k, rot, rig, ne.bridges, damp, split.shift, z, h_out)
         assert np.abs(hz - h_out).max() < 1e-9 * np.abs(h_out).max(), kind
 

@@ -19,6 +19,7 @@ from collections import OrderedDict
 import numpy as np
 from scipy.sparse import csc_matrix, csr_matrix, identity, tril, triu
 
+from .coarse_space import prolongation, regions
 from .normal_equations import NormalEquations, _positions, _scatter
 
 try:  # optional: the `cholmod` extra
@@ -45,11 +46,13 @@ class CoordinateSplit:
     nodes : int
     sigma : (4N,) float64, the shift on K's diagonal (0 on the t rows)
     factorisations : int, numeric factorisations of K_σ so far
+    region, offsets : (N,) region of each node and (N, 3) its offset from the region's centroid, for the
+        coarse space (`coarse_space.py`; `coarse_regions` regions, 0: none)
     """
 
     CACHE = 4  # tracked sets kept factored: a flickering joint costs no refactorisation
 
-    def __init__(self, system: NormalEquations, backend: str | None = None):
+    def __init__(self, system: NormalEquations, backend: str | None = None, coarse_regions: int = 0):
         nodes = system.n // 12
         self.nodes = nodes
         w = system.weights
@@ -92,6 +95,10 @@ class CoordinateSplit:
                                      ordering_method="best")
         self._cache: OrderedDict = OrderedDict()
         self.factorisations = 0
+        self.region, self.offsets = regions(system.g, system.edges, coarse_regions) if coarse_regions else \
+            (np.zeros(nodes, np.int64), np.zeros((nodes, 3)))
+        self._prolongation = prolongation(self.region, self.offsets, int(self.region.max()) + 1) \
+            if coarse_regions else None
 
     def _matrix(self, data: np.ndarray) -> csc_matrix:
         n = 4 * self.nodes
@@ -107,6 +114,15 @@ class CoordinateSplit:
         """(K as CSR arrays (indptr, indices, data), factor tuple for `krylov`, K's (N, 4, 4) diagonal
         blocks) for this tracked set."""
         key = np.asarray(active, dtype=np.float64).tobytes()
+        return self._for_active(active)[:3]
+
+    def coarse(self, active: np.ndarray) -> np.ndarray:
+        """P_cᵀ K P_c (4m, 4m), the coarse space's part of K (`coarse_space.py`), for this tracked set;
+        (0, 0) without a coarse space."""
+        return self._for_active(active)[3]
+
+    def _for_active(self, active: np.ndarray):
+        key = np.asarray(active, dtype=np.float64).tobytes()
         hit = self._cache.get(key)
         if hit is not None:
             self._cache.move_to_end(key)
@@ -115,7 +131,9 @@ class CoordinateSplit:
         k = (self._indptr32, self._indices32, data)  # symmetric: CSC arrays are CSR arrays too
         shifted = self._matrix(data + self.shift_data)
         self.factorisations += 1
-        hit = (k, self._factor(shifted), self._node_blocks(data))
+        p = self._prolongation
+        kc = np.zeros((0, 0)) if p is None else np.ascontiguousarray((p.T @ (self._matrix(data) @ p)).toarray())
+        hit = (k, self._factor(shifted), self._node_blocks(data), kc)
         self._cache[key] = hit
         if len(self._cache) > self.CACHE:
             self._cache.popitem(last=False)

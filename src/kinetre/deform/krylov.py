@@ -25,6 +25,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..jit import njit
+from .coarse_space import coarse_add
 from .normal_equations import rigidity_block_jacobian
 
 COORDINATE, BLOCK_JACOBI, TWO_LEVEL, ADDITIVE, V_CYCLE, HALF_CYCLE = 0, 1, 2, 3, 4, 5
@@ -254,15 +255,30 @@ def _coordinate_solve(lp, li, lx, ld, up, ui, ux, ud, row_perm, col_perm, r, out
 
 
 @njit(cache=True)
-def _precondition(kind, fac, kp, ki, kx, rot, rig, bridges, damp, node_fac, r, z, hz, t1, t2, work):
+def _precondition(kind, fac, kp, ki, kx, rot, rig, bridges, damp, node_fac, coarse, r, z, hz, t1, t2, work):
     """z = M⁻¹ r for the chosen preconditioner (t1, t2, work: scratch). Returns whether it also wrote
-    hz = H z (two-level: it comes almost free, see below), sparing CG its own product with H."""
+    hz = H z (two-level: it comes almost free, see below), sparing CG its own product with H.
+
+    With a coarse space (`coarse` = (factor, region, offsets) of `coarse_space.py`, factor (0, 0): none) the
+    half cycle and the two-level start with the coarse correction z = C r and go on from r − H z; the
+    two-level also ends with one (C, two-level, C: symmetric)."""
     lp, li, lx, ld, up, ui, ux, ud, row_perm, col_perm, shift = fac
+    gfac, region, offsets = coarse
     if kind == BLOCK_JACOBI:
         _node_solve(node_fac, r, z)
         return False
     if kind == HALF_CYCLE:  # z ← B r, z ← z + S (r − H z): one coordinate solve, and H z comes free
-        _node_solve(node_fac, r, z)
+        if gfac.shape[0]:  # z ← C r, z ← z + B (r − H z) first
+            z[:] = 0.0
+            coarse_add(gfac, region, offsets, r, z)
+            _hessian_times(kp, ki, kx, rot, rig, bridges, damp, shift, z, hz)
+            for i in range(r.shape[0]):
+                t1[i] = r[i] - hz[i]
+            _node_solve(node_fac, t1, t2)
+            for i in range(r.shape[0]):
+                z[i] += t2[i]
+        else:
+            _node_solve(node_fac, r, z)
         _hessian_times(kp, ki, kx, rot, rig, bridges, damp, shift, z, hz)
         _coordinate_step(fac, rot, rig, bridges, damp, r, z, hz, t1, t2, work)
         return True
@@ -277,16 +293,34 @@ def _precondition(kind, fac, kp, ki, kx, rot, rig, bridges, damp, node_fac, r, z
         for i in range(r.shape[0]):
             z[i] += t2[i]
         return False
-    _coordinate_solve(lp, li, lx, ld, up, ui, ux, ud, row_perm, col_perm, r, z, work)
-    if kind == COORDINATE:
+    if kind == TWO_LEVEL and gfac.shape[0]:  # C, the two-level on what is left, C again
+        zc = np.zeros(r.shape[0])
+        coarse_add(gfac, region, offsets, r, zc)
+        hc = np.empty(r.shape[0])
+        _hessian_times(kp, ki, kx, rot, rig, bridges, damp, shift, zc, hc)
+        rest = r - hc
+        _two_level(fac, kp, ki, kx, rot, rig, bridges, damp, node_fac, rest, z, hz, t1, t2, work)
+        for i in range(r.shape[0]):
+            z[i] += zc[i]
+            rest[i] = r[i] - hz[i] - hc[i]
+        coarse_add(gfac, region, offsets, rest, z)
         return False
+    if kind == TWO_LEVEL:
+        _two_level(fac, kp, ki, kx, rot, rig, bridges, damp, node_fac, r, z, hz, t1, t2, work)
+        return True
+    _coordinate_solve(lp, li, lx, ld, up, ui, ux, ud, row_perm, col_perm, r, z, work)
     if kind == ADDITIVE:  # z = S r + B r: positive definite whatever the pose
         _node_solve(node_fac, r, t2)
         for i in range(r.shape[0]):
             z[i] += t2[i]
-        return False
-    # symmetric multiplicative: z ← S r, z ← z + B (r − H z), z ← z + S (r − H z)
-    t2[:] = z
+    return False
+
+
+@njit(cache=True)
+def _two_level(fac, kp, ki, kx, rot, rig, bridges, damp, node_fac, r, z, hz, t1, t2, work):
+    """Symmetric multiplicative: z ← S r, z ← z + B (r − H z), z ← z + S (r − H z); hz ← H z."""
+    lp, li, lx, ld, up, ui, ux, ud, row_perm, col_perm, shift = fac
+    _coordinate_solve(lp, li, lx, ld, up, ui, ux, ud, row_perm, col_perm, r, t2, work)
     z[:] = 0.0
     _after_coordinate_solve(rot, rig, bridges, damp, shift, z, t1, t2)
     _node_solve(node_fac, t1, t2)
@@ -294,7 +328,6 @@ def _precondition(kind, fac, kp, ki, kx, rot, rig, bridges, damp, node_fac, r, z
         z[i] += t2[i]
     _hessian_times(kp, ki, kx, rot, rig, bridges, damp, shift, z, hz)
     _coordinate_step(fac, rot, rig, bridges, damp, r, z, hz, t1, t2, work)
-    return True
 
 
 @njit(cache=True)
@@ -324,7 +357,7 @@ def _after_coordinate_solve(rot, rig, bridges, damp, shift, z, residual, step):
 
 
 @njit(cache=True)
-def pcg(kind, fac, kp, ki, kx, rot, rig, bridges, damp, node_fac, b, max_iterations, tolerance):
+def pcg(kind, fac, kp, ki, kx, rot, rig, bridges, damp, node_fac, coarse, b, max_iterations, tolerance):
     """Solve H x = b approximately from x = 0: stops after `max_iterations` or when ‖r‖ ≤ tolerance ‖b‖.
 
     Returns (x, iterations, converged): `converged` says the residual reached the tolerance. Every
@@ -344,7 +377,7 @@ def pcg(kind, fac, kp, ki, kx, rot, rig, bridges, damp, node_fac, b, max_iterati
     bnorm = np.sqrt(b @ b)
     if bnorm == 0.0:
         return x, 0, True
-    known = _precondition(kind, fac, kp, ki, kx, rot, rig, bridges, damp, node_fac, r, z, hz, t1, t2, work)
+    known = _precondition(kind, fac, kp, ki, kx, rot, rig, bridges, damp, node_fac, coarse, r, z, hz, t1, t2, work)
     p[:] = z
     if known:  # hp = H p without a pass over K: H z from the preconditioner, H p by the same recurrence as p
         hp[:] = hz
@@ -355,8 +388,8 @@ def pcg(kind, fac, kp, ki, kx, rot, rig, bridges, damp, node_fac, b, max_iterati
             # far from rotations E_rot's blocks outgrow 2 (K + σ I) and the multiplicative form can lose
             # definiteness: restart from x with the additive form, which cannot
             kind = ADDITIVE
-            known = _precondition(kind, fac, kp, ki, kx, rot, rig, bridges, damp, node_fac, r, z, hz, t1, t2,
-                                  work)
+            known = _precondition(kind, fac, kp, ki, kx, rot, rig, bridges, damp, node_fac, coarse, r, z, hz,
+                                  t1, t2, work)
             p[:] = z
             rz = r @ z
         if not known:
@@ -375,13 +408,14 @@ def pcg(kind, fac, kp, ki, kx, rot, rig, bridges, damp, node_fac, b, max_iterati
             # one iteration did not do: CG needs a symmetric preconditioner, so restart from x with
             # the two-level one
             kind = TWO_LEVEL
-            known = _precondition(kind, fac, kp, ki, kx, rot, rig, bridges, damp, node_fac, r, z, hz, t1, t2,
-                                  work)
+            known = _precondition(kind, fac, kp, ki, kx, rot, rig, bridges, damp, node_fac, coarse, r, z, hz,
+                                  t1, t2, work)
             p[:] = z
-            hp[:] = hz
+            if known:
+                hp[:] = hz
             rz = r @ z
             continue
-        fresh = _precondition(kind, fac, kp, ki, kx, rot, rig, bridges, damp, node_fac, r, z, hz, t1, t2, work)
+        fresh = _precondition(kind, fac, kp, ki, kx, rot, rig, bridges, damp, node_fac, coarse, r, z, hz, t1, t2, work)
         rz_new = r @ z
         if not (rz_new > 0.0):
             rz = rz_new

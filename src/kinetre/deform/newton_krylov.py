@@ -15,6 +15,7 @@ import numpy as np
 
 from ..jit import njit
 from .gradient import energy_gradient
+from .coarse_space import coarse_factor
 from .krylov import COORDINATE, local_blocks, node_factors, pcg, stretch_curvature
 
 
@@ -22,9 +23,12 @@ from .krylov import COORDINATE, local_blocks, node_factors, pcg, stretch_curvatu
 def gauss_newton_pcg(x, g, edges, con_nodes, con_weights, con_points, targets, active, bridges,
                      w_rot, w_reg, w_con, w_rig, kind, fac, kp, ki, kx, k_blocks, k_diag,
                      max_iterations, relative_tolerance, cg_iterations, cg_tolerance, lam, max_damping,
-                     energy_floor, rot, rig, node_fac, energies, backtracks, curvature):
+                     energy_floor, rot, rig, node_fac, energies, backtracks, curvature, coarse, kc):
     """Minimise E from x (N, 12, updated in place). Returns (E, iterations, accepted, CG iterations,
-    number of entries written to `energies` (E after each accepted step, from the initial E), λ)."""
+    number of entries written to `energies` (E after each accepted step, from the initial E), λ).
+    `coarse` = (factor (12m, 12m), region, offsets) and kc: the coarse space of `coarse_space.py` (a factor of
+    shape (0, 0): none), factored at the frame's first step and again only when λ has moved by more than 4×:
+    a preconditioner may lag the pose, and its factor costs as much as a step's other work."""
     n = x.shape[0]
     m = 12 * n
     grad = np.empty(m)
@@ -41,6 +45,7 @@ def gauss_newton_pcg(x, g, edges, con_nodes, con_weights, con_points, targets, a
     iterations = accepted = cg_total = 0
     decrease = 0.0
     trial = np.empty(m)
+    coarse_lam = -1.0  # the damping the coarse factor was made with (none yet)
     while iterations < max_iterations and energy > energy_floor:
         for j in range(n):
             for a in range(3):
@@ -79,8 +84,11 @@ def gauss_newton_pcg(x, g, edges, con_nodes, con_weights, con_points, targets, a
                 damp[i] = lam * diag[i]
             if kind != COORDINATE:
                 node_factors(k_blocks, rot, rig, bridges, damp, node_fac)
-            dy, it, converged = pcg(kind, fac, kp, ki, kx, rot, rig, bridges, damp, node_fac, neg, cg_iterations,
-                                    cg_tolerance)
+            if coarse[0].shape[0] and not (0.25 * coarse_lam <= lam <= 4.0 * coarse_lam):
+                coarse_factor(kc, coarse[1], coarse[2], rot, rig, bridges, damp, coarse[0])
+                coarse_lam = lam
+            dy, it, converged = pcg(kind, fac, kp, ki, kx, rot, rig, bridges, damp, node_fac, coarse, neg,
+                                    cg_iterations, cg_tolerance)
             cg_total += it
             predicted = neg @ dy  # the model's decrease, up to the damping term
             if not predicted > 1e-3 * relative_tolerance * energy:

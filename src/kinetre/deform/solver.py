@@ -32,7 +32,7 @@ from .normal_equations import NormalEquations
 from .rigid_start import rigid_start
 
 PRECONDITIONERS = {"coordinate": COORDINATE, "block_jacobi": BLOCK_JACOBI, "two_level": TWO_LEVEL, "additive": ADDITIVE,
-                   "v_cycle": V_CYCLE, "half_cycle": HALF_CYCLE}
+                   "v_cycle": V_CYCLE, "half_cycle": HALF_CYCLE, "adaptive": HALF_CYCLE}
 
 
 @dataclass(frozen=True)
@@ -41,7 +41,9 @@ class SolverSettings:
 
     method : "pcg" (default), "exact" (sparse Cholesky of the full system, the reference) or
         "local_global" (`local_global.py`, settings in `local_global`; jumps and the first frame as "pcg")
-    preconditioner : for "pcg": "half_cycle" (node blocks then K_σ for a step's first CG iteration, then
+    preconditioner : for "pcg": "adaptive" (default: "half_cycle" while the last frames' Gauss-Newton steps
+        needed about one CG iteration each, else "two_level": see `GaussNewton._preconditioner`),
+        "half_cycle" (node blocks then K_σ for a step's first CG iteration, then
         "two_level": one pair of triangular solves where most steps need only that iteration),
         "two_level" (K_σ, node blocks, K_σ), "v_cycle" (node blocks, K_σ, node
         blocks: one pair of triangular solves per application instead of two, but at 512 nodes twice the
@@ -62,6 +64,9 @@ class SolverSettings:
         (`krylov.stretch_curvature`): a Newton step where Gauss-Newton's would overshoot (two-level
         preconditioner, 256 nodes, two skeletons: 3.1 instead of 4.2 steps per frame on the walk)
     reuse_factor : for "exact": keep the numeric factor while its steps keep lowering E
+    coarse_regions : for "pcg" with the half cycle or two-level: a coarse space of this many regions' affine
+        motions in the preconditioner (`coarse_space.py`), for whole limbs turning; 0: none. "adaptive"
+        uses it only on frames whose steps need many CG iterations
     """
 
     max_iterations: int = 10
@@ -70,7 +75,7 @@ class SolverSettings:
     max_damping: float = 1e8
     reuse_factor: bool = False
     method: str = "pcg"
-    preconditioner: str = "half_cycle"
+    preconditioner: str = "adaptive"
     cg_iterations: int = 8
     cg_tolerance: float = 0.2
     jump: float = 10.0
@@ -78,6 +83,7 @@ class SolverSettings:
     backtracks: int = 2
     local_global: LocalGlobalSettings = LocalGlobalSettings()
     curvature: bool = True
+    coarse_regions: int = 8
 
     def __post_init__(self):
         if self.method not in ("pcg", "exact", "local_global"):
@@ -111,11 +117,17 @@ class GaussNewton:
         self.settings = settings
         self._backend = backend
         self._factor = None
-        self.split = CoordinateSplit(system, backend) if settings.method != "exact" else None
+        self.split = CoordinateSplit(system, backend, settings.coarse_regions) if settings.method != "exact" else None
         nodes = system.n // 12
         self._rot = np.zeros((nodes, 9, 9))
         self._rig = np.zeros((len(system.bridges), 18, 18))
         self._node_fac = np.zeros((nodes, 12, 12))
+        count = 0 if self.split is None or not settings.coarse_regions else int(self.split.region.max()) + 1
+        region = self.split.region if self.split is not None else np.zeros(nodes, np.int64)
+        offsets = self.split.offsets if self.split is not None else np.zeros((nodes, 3))
+        self._coarse = (np.zeros((12 * count, 12 * count)), region, offsets)
+        self._no_coarse = (np.zeros((0, 0)), region, offsets)
+        self._coarse_on = False  # "adaptive": the coarse space is in use
         self._no_gradient = np.zeros(0)
         self._last_energy = None  # the last solve's result ("pcg")
         self._jump_left = 0  # exact steps left to a jump that `stop` cut short (it goes on next frame)
@@ -130,6 +142,7 @@ class GaussNewton:
         # damping carried over between frames, one per path: the scale suited to a full step and to
         # a truncated one differ
         self._lam = self._lam_exact = None
+        self._cg_per_step = None  # CG iterations per Gauss-Newton step over the last frames ("adaptive")
 
     @property
     def factor(self) -> ReusedCholesky:
@@ -307,29 +320,45 @@ class GaussNewton:
         x = np.array(x0, dtype=np.float64, order="C")
         energies = np.empty(max_iterations + 1)
         lam = self._lam if self._lam is not None else s.initial_damping
+        kind, coarse = self._preconditioner()
         energy, iterations, accepted, cg_total, count, lam = gauss_newton_pcg(
             x, sysm.g, sysm.edges, cons.nodes, cons.weights, cons.points,
             np.ascontiguousarray(targets, dtype=np.float64), np.ascontiguousarray(active, dtype=np.float64),
-            sysm.bridges, w.rot, w.reg, w.con, w.rig, PRECONDITIONERS[s.preconditioner], fac, k[0], k[1], k[2],
+            sysm.bridges, w.rot, w.reg, w.con, w.rig, kind, fac, k[0], k[1], k[2],
             k_blocks, k[2][self.split.diag_pos], max_iterations, s.relative_tolerance, s.cg_iterations,
             s.cg_tolerance, lam, s.max_damping, self.energy_floor, self._rot, self._rig, self._node_fac, energies,
-            s.backtracks, s.curvature)
+            s.backtracks, s.curvature, self._coarse if coarse else self._no_coarse, self.split.coarse(active))
         self._lam = min(max(lam, s.initial_damping), 1e3)
+        if iterations:
+            rate = cg_total / iterations
+            self._cg_per_step = rate if self._cg_per_step is None else 0.5 * (self._cg_per_step + rate)
         return SolveReport(x=x, energy=energy, iterations=iterations, accepted=accepted,
                            energies=tuple(energies[:count]), factorisations=self.split.factorisations - before,
                            cg_iterations=cg_total)
 
-    def _solve_local_global(self, x0: np.ndarray, targets: np.ndarray, active: np.ndarray) -> SolveReport:
-        """Local/global iterations (`local_global.py`), then the PCG loop from their result unless they
-        converged."""
-        before = self.split.factorisations
-        x, energy, iterations, accepted, energies, converged = local_global_frame(
-            self.system, self.split.for_active(active), self.split.diag_pos, self.settings.local_global, x0,
-            targets, active, self.energy_floor, self._rot, self._rig, self._node_fac)
-        if converged:
-            return SolveReport(x=x, energy=energy, iterations=iterations, accepted=accepted, energies=energies,
-                               factorisations=self.split.factorisations - before)
-        rest = self._solve_pcg(x, targets, active)
-        return SolveReport(x=rest.x, energy=rest.energy, iterations=iterations + rest.iterations,
-                           accepted=accepted + rest.accepted, energies=energies + rest.energies[1:],
-                           factorisations=self.split.factorisations - before, cg_iterations=rest.cg_iterations)
+    # "adaptive": above this many CG iterations per step (over the last frames) the half cycle's steps,
+    # restarted after their first iteration, cost more Gauss-Newton steps than the two-level's; above
+    # COARSE_ON the coarse space joins in, and leaves below COARSE_OFF
+    ADAPTIVE_CG_PER_STEP = 1.3
+    COARSE_ON, COARSE_OFF = 2.0, 1.5
+
+    def _preconditioner(self) -> tuple[int, bool]:
+        """The preconditioner for this frame, and whether the coarse space (`coarse_space.py`) is in it.
+
+        "adaptive" takes the half cycle while the last frames' Gauss-Newton steps needed about one CG
+        iteration each (one pair of triangular solves per step instead of two: the walk with two skeletons,
+        1.15 per step) and the two-level otherwise (few constraints: 512 nodes and one skeleton, 1.45 per
+        step, where the half cycle took 4.8 steps per frame against 3.6). Both need about as many CG
+        iterations per step on the same frames, so the choice does not flip with itself. Where steps need
+        more than two, graph-wide modes (one arm possessing a body: 2.4-3.3) are what CG crawls on, and the
+        coarse space of `coarse_regions` regions joins the two-level: 2.1 instead of 3.3 steps per frame
+        there, energies with the exact solve's to 1e-5 instead of 1.2e-3 (bench_core). On the walk with
+        two skeletons it would cost 0.2 ms per step for 0.3 fewer steps, so it stays out."""
+        name, rate = self.settings.preconditioner, self._cg_per_step
+        if name != "adaptive":
+            return PRECONDITIONERS[name], self.settings.coarse_regions > 0 and name in ("half_cycle", "two_level")
+        if rate is not None and self.settings.coarse_regions:
+            self._coarse_on = rate > (self.COARSE_OFF if self._coarse_on else self.COARSE_ON)
+        if rate is not None and rate > self.ADAPTIVE_CG_PER_STEP:
+            return TWO_LEVEL, self._coarse_on
+        return HALF_CYCLE, False
