@@ -135,5 +135,7 @@ def test_one_of_two_users_teleporting_is_a_jump_whose_pcg_steps_match_exact_ones
     e = np.array([r.energy for _, r in pcg[jump:]])
     e_exact_steps = np.array([r.energy for _, r in by_exact_steps[jump:]])
     np.testing.assert_allclose(e, e_exact_steps, rtol=2e-3)
-    np.testing.assert_allclose(e[[0, *range(2, len(e))]], e_exact_steps[[0, *range(2, len(e))]], rtol=1e-3)
+    # and no higher than them by more than 1e-3 (the coarse space can take the jump frame lower still)
+    rest = [0, *range(2, len(e))]
+    assert np.all(e[rest] <= e_exact_steps[rest] * (1 + 1e-3)), e[rest] / e_exact_steps[rest] - 1
     np.testing.assert_allclose(e, [r.energy for _, r in exact[jump:]], rtol=2e-2)

@@ -150,13 +150,14 @@ class CoordinateSplit:
     def _factor(self, matrix: csc_matrix):
         """(Lp, Li, Lx, L⁻¹ diagonal, Up, Ui, Ux, U⁻¹ diagonal, row_perm, col_perm) with
         matrix[row_perm][:, col_perm] = L U; L strictly lower and U strictly upper, both by rows (CSR),
-        so both triangular solves gather along a row instead of scattering along a column (half the
-        time: no stores in the inner loop)."""
+        so the forward solve gathers along a row instead of scattering along a column (half the time: no
+        stores in the inner loop). For a Cholesky factor U = Lᵀ is left empty: the backward solve reads L
+        again, which then stays in cache (`krylov._coordinate_solve`)."""
         if self.backend == "cholmod":
             f = self._symbolic.cholesky(matrix)
             lower = f.L().tocsr()
             perm = f.P().astype(np.int64)
-            upper = lower.T.tocsr()
+            upper = None
             row_perm = col_perm = perm
         else:
             from scipy.sparse.linalg import splu
@@ -166,6 +167,9 @@ class CoordinateSplit:
             col_perm = np.argsort(lu.perm_c).astype(np.int64)
         out = []
         for m, keep in ((lower, tril), (upper, triu)):
+            if m is None:  # U = Lᵀ
+                out += [np.zeros(0, np.int32), np.zeros(0, np.int32), np.zeros(0), out[3]]
+                continue
             inverse_diagonal = 1.0 / m.diagonal()
             m = keep(m, k=-1 if keep is tril else 1, format="csr")
             m.sort_indices()

@@ -362,3 +362,18 @@ class GaussNewton:
         if rate is not None and rate > self.ADAPTIVE_CG_PER_STEP:
             return TWO_LEVEL, self._coarse_on
         return HALF_CYCLE, False
+
+    def _solve_local_global(self, x0: np.ndarray, targets: np.ndarray, active: np.ndarray) -> SolveReport:
+        """Local/global iterations (`local_global.py`), then the PCG loop from their result unless they
+        converged."""
+        before = self.split.factorisations
+        x, energy, iterations, accepted, energies, converged = local_global_frame(
+            self.system, self.split.for_active(active), self.split.diag_pos, self.settings.local_global, x0,
+            targets, active, self.energy_floor, self._rot, self._rig, self._node_fac)
+        if converged:
+            return SolveReport(x=x, energy=energy, iterations=iterations, accepted=accepted, energies=energies,
+                               factorisations=self.split.factorisations - before)
+        rest = self._solve_pcg(x, targets, active)
+        return SolveReport(x=rest.x, energy=rest.energy, iterations=iterations + rest.iterations,
+                           accepted=accepted + rest.accepted, energies=energies + rest.energies[1:],
+                           factorisations=self.split.factorisations - before, cg_iterations=rest.cg_iterations)
