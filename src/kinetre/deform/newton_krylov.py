@@ -27,7 +27,7 @@ def gauss_newton_pcg(x, g, edges, con_nodes, con_weights, con_points, targets, a
     """Minimise E from x (N, 12, updated in place). Returns (E, iterations, accepted, CG iterations,
     number of entries written to `energies` (E after each accepted step, from the initial E), λ).
     `coarse` = (factor (12m, 12m), region, offsets) and kc: the coarse space of `coarse_space.py` (a factor of
-    shape (0, 0): none), factored at the frame's first step and again only when λ has moved by more than 4×:
+    shape (0, 0): none), factored at the frame's first step and again only when λ + 0.01 has moved 4×:
     a preconditioner may lag the pose, and its factor costs as much as a step's other work."""
     n = x.shape[0]
     m = 12 * n
@@ -45,7 +45,7 @@ def gauss_newton_pcg(x, g, edges, con_nodes, con_weights, con_points, targets, a
     iterations = accepted = cg_total = 0
     decrease = 0.0
     trial = np.empty(m)
-    coarse_lam = -1.0  # the damping the coarse factor was made with (none yet)
+    coarse_lam = -1.0  # the damping the coarse factor was made with (-1: none yet, refactor)
     while iterations < max_iterations and energy > energy_floor:
         for j in range(n):
             for a in range(3):
@@ -84,7 +84,8 @@ def gauss_newton_pcg(x, g, edges, con_nodes, con_weights, con_points, targets, a
                 damp[i] = lam * diag[i]
             if kind != COORDINATE:
                 node_factors(k_blocks, rot, rig, bridges, damp, node_fac)
-            if coarse[0].shape[0] and not (0.25 * coarse_lam <= lam <= 4.0 * coarse_lam):
+            # λ below 1e-2 barely changes H's diagonal (λ diag(H) is added to it): not worth a refactor
+            if coarse[0].shape[0] and not (0.25 * (coarse_lam + 1e-2) <= lam + 1e-2 <= 4.0 * (coarse_lam + 1e-2)):
                 coarse_factor(kc, coarse[1], coarse[2], rot, rig, bridges, damp, coarse[0])
                 coarse_lam = lam
             dy, it, converged = pcg(kind, fac, kp, ki, kx, rot, rig, bridges, damp, node_fac, coarse, neg,

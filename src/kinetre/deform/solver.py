@@ -336,24 +336,24 @@ class GaussNewton:
                            energies=tuple(energies[:count]), factorisations=self.split.factorisations - before,
                            cg_iterations=cg_total)
 
-    # "adaptive": above this many CG iterations per step (over the last frames) the half cycle's steps,
-    # restarted after their first iteration, cost more Gauss-Newton steps than the two-level's; above
-    # COARSE_ON the coarse space joins in, and leaves below COARSE_OFF
-    ADAPTIVE_CG_PER_STEP = 1.3
+    # "adaptive": above this many CG iterations per step (over the last frames) the two-level replaces the
+    # half cycle; above COARSE_ON the coarse space joins in, and leaves below COARSE_OFF
+    ADAPTIVE_CG_PER_STEP = 1.5
     COARSE_ON, COARSE_OFF = 2.0, 1.5
 
     def _preconditioner(self) -> tuple[int, bool]:
         """The preconditioner for this frame, and whether the coarse space (`coarse_space.py`) is in it.
 
-        "adaptive" takes the half cycle while the last frames' Gauss-Newton steps needed about one CG
-        iteration each (one pair of triangular solves per step instead of two: the walk with two skeletons,
-        1.15 per step) and the two-level otherwise (few constraints: 512 nodes and one skeleton, 1.45 per
-        step, where the half cycle took 4.8 steps per frame against 3.6). Both need about as many CG
-        iterations per step on the same frames, so the choice does not flip with itself. Where steps need
-        more than two, graph-wide modes (one arm possessing a body: 2.4-3.3) are what CG crawls on, and the
-        coarse space of `coarse_regions` regions joins the two-level: 2.1 instead of 3.3 steps per frame
-        there, energies with the exact solve's to 1e-5 instead of 1.2e-3 (bench_core). On the walk with
-        two skeletons it would cost 0.2 ms per step for 0.3 fewer steps, so it stays out."""
+        "adaptive" follows the CG iterations per Gauss-Newton step of the last frames (both designs need
+        about as many on the same frames, so the choice does not flip with itself). At about one (the walk
+        with two skeletons: 1.2) the half cycle: one pair of triangular solves per step instead of two.
+        Above 1.5 the two-level, whose steps need no restart (512 nodes and one skeleton: 1.45-1.5 per
+        step, 3.6 steps per frame against the half cycle's 4.8; measured, the two about even in time, the
+        half cycle 2-4 % slower in most runs). Above two, graph-wide modes are what CG crawls on (one arm
+        possessing a body: 2.4-3.3) and the coarse space of `coarse_regions` regions joins the two-level:
+        there 2.1 instead of 3.3-4.8 steps per frame, 3.2 instead of 4.1-4.5 CPU ms at 256 nodes, and the
+        exact solve's energies to 2e-5 instead of 1.2-1.4e-3 (median). On the walk with two skeletons it
+        would cost 0.2 ms per step for 0.3 fewer steps, so it stays out there."""
         name, rate = self.settings.preconditioner, self._cg_per_step
         if name != "adaptive":
             return PRECONDITIONERS[name], self.settings.coarse_regions > 0 and name in ("half_cycle", "two_level")
