@@ -37,6 +37,7 @@ def test_geometry_document_matches_trimesh_export(capsule_take, kind):
     plain = Mesh(mesh.vertices, mesh.faces, mesh.normals, colors=colours(kind, len(mesh.vertices)))
     ours, our_blob = geometry_document(plain, "take")
     theirs, their_blob = exported_document("x.glb", plain, "take")
+    assert ours.scene == theirs.scene == 0
     a, b = ours.meshes[0].primitives[0], theirs.meshes[0].primitives[0]
     assert a.mode == b.mode == gl.TRIANGLES
     index_ours, acc_ours = attribute(ours, our_blob, a.indices)
@@ -74,3 +75,20 @@ def test_plain_mesh_take_is_valid(tmp_path, capsule_take):
     assert report["issues"]["numErrors"] == 0 and report["issues"]["numWarnings"] == 0, report["issues"]
     doc = gl.GLTF2().load(str(out))
     assert doc.materials == [] and doc.meshes[0].primitives[0].attributes.TEXCOORD_0 is None
+    assert doc.scene == 0 and doc.scenes[0].nodes == [0, 1]  # players show the default scene
+
+
+def test_skin_weights_same_for_float32_and_float64_tables(capsule_take):
+    import dataclasses
+    from kinetre.export.gltf import skin_weights
+    graph = capsule_take[1]
+    rng = np.random.default_rng(5)
+    raw = rng.random(graph.vertex_weights.shape) ** 3  # unnormalised, some rows far from summing to 1
+    narrow = dataclasses.replace(graph, vertex_weights=raw.astype(np.float32),
+                                 vertex_nodes=graph.vertex_nodes.astype(np.int32))
+    wide = dataclasses.replace(graph, vertex_weights=raw.astype(np.float32).astype(np.float64),
+                               vertex_nodes=graph.vertex_nodes.astype(np.int64))
+    (j32, w32), (j64, w64) = skin_weights(narrow), skin_weights(wide)
+    np.testing.assert_array_equal(j32, j64)
+    assert w32.tobytes() == w64.tobytes()
+    assert np.abs(w32.astype(np.float64).sum(axis=1) - 1).max() < 1e-6
