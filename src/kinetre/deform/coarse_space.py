@@ -97,16 +97,28 @@ def coarse_factor(kc, region, offsets, rot, rig, bridges, damp, out):
                         out[os_ + u, oss + v] += rig[e, 9 * s + u, 9 * ss + v]
     n = out.shape[0]
     for c in range(n):
-        d = out[c, c]
-        for k in range(c):
-            d -= out[c, k] * out[c, k]
+        d = out[c, c] - _dot(out, c, c, c)
         d = np.sqrt(d) if d > 0.0 else 1e150  # a region nothing holds: no correction there
         out[c, c] = 1.0 / d
         for r in range(c + 1, n):
-            s = out[r, c]
-            for k in range(c):
-                s -= out[r, k] * out[c, k]
-            out[r, c] = s * out[c, c]
+            out[r, c] = (out[r, c] - _dot(out, r, c, c)) * out[c, c]
+
+
+@njit(cache=True)
+def _dot(a, r, c, count):
+    """a[r, :count] · a[c, :count] with four accumulators (one would wait on each add: 2.5× slower)."""
+    s0 = s1 = s2 = s3 = 0.0
+    k = 0
+    while k + 4 <= count:
+        s0 += a[r, k] * a[c, k]
+        s1 += a[r, k + 1] * a[c, k + 1]
+        s2 += a[r, k + 2] * a[c, k + 2]
+        s3 += a[r, k + 3] * a[c, k + 3]
+        k += 4
+    while k < count:
+        s0 += a[r, k] * a[c, k]
+        k += 1
+    return (s0 + s1) + (s2 + s3)
 
 
 @njit(cache=True)

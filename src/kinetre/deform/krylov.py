@@ -18,7 +18,8 @@ more (1.1 per step), and a step that does restarts CG with the symmetric two-lev
 cycle is not symmetric (256 nodes, two skeletons: 1.87 against 2.17 CPU ms per frame). Where such a
 product loses definiteness (far from rotations) CG restarts with the additive S + B. Since K_σ S r = r,
 the residual after a coordinate solve needs only the node and bridge blocks (`_after_coordinate_solve`),
-not a pass over K.
+not a pass over K. A coarse space of region-affine motions (`coarse_space.py`) can join the half cycle, the
+two-level (multiplicatively) and block Jacobi (additively).
 """
 from __future__ import annotations
 
@@ -278,8 +279,10 @@ def _precondition(kind, fac, kp, ki, kx, rot, rig, bridges, damp, node_fac, coar
     two-level also ends with one (C, two-level, C: symmetric)."""
     lp, li, lx, ld, up, ui, ux, ud, row_perm, col_perm, shift = fac
     gfac, region, offsets = coarse
-    if kind == BLOCK_JACOBI:
+    if kind == BLOCK_JACOBI:  # with a coarse space additively: z = B r + C r (symmetric)
         _node_solve(node_fac, r, z)
+        if gfac.shape[0]:
+            coarse_add(gfac, region, offsets, r, z)
         return False
     if kind == HALF_CYCLE:  # z ← B r, z ← z + S (r − H z): one coordinate solve, and H z comes free
         if gfac.shape[0]:  # z ← C r, z ← z + B (r − H z) first
