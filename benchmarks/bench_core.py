@@ -185,6 +185,39 @@ def bench_solve(cases=((256, 1), (256, 2), (512, 1), (512, 2), (256, 1, "right a
                   "backend": rigs[name].solver.backend})
 
 
+def bench_solve_tail(nodes=256, lag=7, repeats=3):
+    """The hard stretches of a live studio scene: two skeletons each possessing one leg of the capsule body,
+    the second `lag` frames ahead on the same walk, twice round the clip (the loop-arounds pull the legs
+    apart, then together). Per design, the per-frame CPU time of the solving thread (least of 3 runs of the
+    same warm-started frame, designs interleaved frame by frame): median, p99 and max over the frames, and
+    the frames with the coarse space on. The default's tail should be no worse than without the coarse
+    space (`GaussNewton._follow`)."""
+    take = load_bvh(DATA / "bvh" / "cmu_12_01_walk.bvh")
+    frames = [take.frame(i) for i in range(0, len(take), 4)]
+    graph = kinetre.build_graph(capsule_body(frames[0], radius=0.06), nodes=nodes)
+    seq = [[frames[k % len(frames)], frames[(k + lag) % len(frames)]] for k in range(2 * len(frames))]
+    designs = {"pcg_adaptive": SolverSettings(), "pcg_adaptive_no_coarse": SolverSettings(coarse_regions=0)}
+    rigs = {n: kinetre.attach(graph, seq[0], subset=["left leg", "right leg"], settings=s) for n, s in designs.items()}
+    out = {n: ([], [], []) for n in designs}
+    for cur in seq[1:]:
+        for name, rig in rigs.items():
+            out[name][2].append(bool(rig.solver._preconditioner()[1]))
+            cpu, _ = timed_solve(rig, cur, repeats)
+            out[name][0].append(cpu * 1e3)
+            out[name][1].append(rig.last_report.energy)
+    for name, (ms, energy, coarse) in out.items():
+        ms = np.array(ms[1:])  # the first solve is the exact start
+        rel = np.array(energy) / np.array(out["pcg_adaptive_no_coarse"][1]) - 1.0
+        emit({"bench": "solve_tail", "nodes": nodes, "graph_nodes": graph.node_count, "skeletons": 2,
+              "subset": "one leg each", "lag_frames": lag, "mode": name, "frames": len(ms),
+              "timing": "thread CPU, least of 3 runs per frame, designs interleaved",
+              "ms_per_frame_median": round(float(np.median(ms)), 3),
+              "ms_per_frame_p99": round(float(np.percentile(ms, 99)), 3),
+              "ms_per_frame_max": round(float(ms.max()), 3),
+              "coarse_frames": int(np.sum(coarse)),
+              "energy_vs_no_coarse_median": float(f"{np.median(rel):.2e}")})
+
+
 def bench_coordinate_solve(node_counts=(256, 512)):
     """The preconditioner's global part, (K_σ ⊗ I₃)⁻¹ r for x, y, z at once, three ways: the sparse
     float32 factor (the solver's), a dense Cholesky (LAPACK potrs) and a dense inverse (one GEMM)."""
@@ -263,7 +296,7 @@ def bench_skin():
 
 
 if __name__ == "__main__":
-    which = sys.argv[1:] or ["build_graph", "solve", "coordinate_solve", "skin"]
+    which = sys.argv[1:] or ["build_graph", "solve", "solve_tail", "coordinate_solve", "skin"]
     for name in which:
         if name.startswith("solve:"):  # e.g. solve:256 → one node count, one and two skeletons, every design
             bench_solve(cases=tuple((int(n), k) for n in name[6:].split(",") for k in (1, 2)))

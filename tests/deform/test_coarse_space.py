@@ -125,11 +125,42 @@ def test_adaptive_choice_follows_the_cg_iterations_per_step(armadillo_system):
     for rate, want in ((1.1, (HALF_CYCLE, False)), (1.7, (TWO_LEVEL, False)), (2.4, (TWO_LEVEL, True)),
                        (1.6, (TWO_LEVEL, True)), (1.4, (HALF_CYCLE, False)), (1.8, (TWO_LEVEL, False)),
                        (1.2, (HALF_CYCLE, False))):
-        solver._cg_per_step = rate
+        for _ in range(8):  # frames at this rate: the running rate reaches it
+            solver._follow(rate)
         assert solver._preconditioner() == want, rate
     plain = GaussNewton(ne, SolverSettings(coarse_regions=0))
-    plain._cg_per_step = 3.0
+    for _ in range(8):
+        plain._follow(3.0)
     assert plain._preconditioner() == (TWO_LEVEL, False)
+
+
+def test_frames_out_of_steps_leave_the_adaptive_choice_alone(data_dir):
+    """Two skeletons each possess one leg of the body, the second 7 frames ahead on the walk: at the
+    loop-arounds the legs are pulled apart and back, and the frames after run out of Gauss-Newton steps at
+    2-5 CG iterations per step. Those frames do not bring in the coarse space (it took the same steps there
+    with more CG iterations each, the live studio's slow runs): it is never on in a frame that runs out of
+    steps, and no frame needs more CG iterations than the largest without the coarse space."""
+    from kinetre.motion.bvh import load_bvh
+    from synthetic import capsule_body
+    take = load_bvh(data_dir / "bvh" / "cmu_12_01_walk.bvh")
+    frames = [take.frame(i) for i in range(0, len(take), 4)]
+    g = kinetre.build_graph(capsule_body(frames[0], radius=0.06), nodes=256, seed=0)
+    seq = [[frames[k % len(frames)], frames[(k + 7) % len(frames)]] for k in range(len(frames) + 12)]
+    runs = {}
+    for regions in (8, 0):
+        rig = kinetre.attach(g, seq[0], subset=["left leg", "right leg"],
+                             settings=SolverSettings(coarse_regions=regions))
+        runs[regions] = []
+        for cur in seq[1:]:
+            coarse = rig.solver._preconditioner()[1]
+            rig.solve(cur)
+            rep = rig.last_report
+            assert np.all(np.diff(rep.energies) < 0)
+            runs[regions].append((coarse, rep.iterations, rep.cg_iterations))
+    out_of_steps = [r for r in runs[0] if r[1] >= SolverSettings().max_iterations]
+    assert len(out_of_steps) >= 3, runs[0]  # the case has such frames
+    assert not any(c and steps >= SolverSettings().max_iterations for c, steps, _ in runs[8]), runs[8]
+    assert max(cg for _, _, cg in runs[8]) <= max(cg for _, _, cg in runs[0]), (runs[8], runs[0])
 
 
 @pytest.mark.parametrize("preconditioner", ["adaptive", "block_jacobi"])

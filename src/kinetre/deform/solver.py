@@ -332,9 +332,8 @@ class GaussNewton:
             s.cg_tolerance, lam, s.max_damping, self.energy_floor, self._rot, self._rig, self._node_fac, energies,
             s.backtracks, s.curvature, self._coarse if coarse else self._no_coarse, self.split.coarse(active))
         self._lam = min(max(lam, s.initial_damping), 1e3)
-        if iterations:
-            rate = cg_total / iterations
-            self._cg_per_step = rate if self._cg_per_step is None else 0.5 * (self._cg_per_step + rate)
+        if iterations and iterations < max_iterations and max_iterations == s.max_iterations:
+            self._follow(cg_total / iterations)
         return SolveReport(x=x, energy=energy, iterations=iterations, accepted=accepted,
                            energies=tuple(energies[:count]), factorisations=self.split.factorisations - before,
                            cg_iterations=cg_total)
@@ -344,24 +343,43 @@ class GaussNewton:
     ADAPTIVE_CG_PER_STEP = 1.5
     COARSE_ON, COARSE_OFF = 2.0, 1.5
 
+    def _follow(self, rate: float) -> None:
+        """"adaptive": take a frame's CG iterations per Gauss-Newton step into the running rate, and decide
+        whether the coarse space is in the next frames' preconditioner.
+
+        Only frames that end within the usual step budget count: a jump's, or one that runs out of steps,
+        is limited by the Gauss-Newton steps (a pose far from the warm start, the damping high), not by CG,
+        and the coarse space does not help there. Measured on the capsule body with two skeletons each
+        driving one leg, 7 frames apart (bench_core's `solve_tail`): after the loop-around, frames out of
+        steps at 2-2.5 CG iterations per step brought it in; with it they took the same 10 steps at 2.6-4.8
+        CG iterations each (2.1-3 with its factor refreshed every step), which kept it on: 22-32 instead of
+        12-18 ms CPU a frame. Its gain is in steps rather than in CG iterations per step (one arm: 2 steps a
+        frame instead of 3-4, at 2-3.5 CG iterations each either way).
+        """
+        self._cg_per_step = rate if self._cg_per_step is None else 0.5 * (self._cg_per_step + rate)
+        if not self.settings.coarse_regions:
+            return
+        if self._coarse_on:
+            self._coarse_on = self._cg_per_step > self.COARSE_OFF
+        else:
+            self._coarse_on = self._cg_per_step > self.COARSE_ON
+
     def _preconditioner(self) -> tuple[int, bool]:
         """The preconditioner for this frame, and whether the coarse space (`coarse_space.py`) is in it.
 
-        "adaptive" follows the CG iterations per Gauss-Newton step of the last frames (both designs need
-        about as many on the same frames, so the choice does not flip with itself). At about one (the walk
-        with two skeletons: 1.2) the half cycle: one pair of triangular solves per step instead of two.
-        Above 1.5 the two-level, whose steps need no restart (512 nodes and one skeleton: 1.45-1.5 per
-        step, 3.6 steps per frame against the half cycle's 4.8; measured, the two about even in time, the
-        half cycle 2-4 % slower in most runs). Above two, graph-wide modes are what CG crawls on (one arm
-        possessing a body: 2.4-3.3) and the coarse space of `coarse_regions` regions joins the two-level:
-        there 2.1 instead of 3.3-4.8 steps per frame, 3.2 instead of 4.1-4.5 CPU ms at 256 nodes, and the
-        exact solve's energies to 2e-5 instead of 1.2-1.4e-3 (median). On the walk with two skeletons it
-        would cost 0.2 ms per step for 0.3 fewer steps, so it stays out there."""
+        "adaptive" follows the CG iterations per Gauss-Newton step of the last frames (`_follow`; both
+        designs need about as many on the same frames, so the choice does not flip with itself). At about
+        one (the walk with two skeletons: 1.2) the half cycle: one pair of triangular solves per step
+        instead of two. Above 1.5 the two-level, whose steps need no restart (512 nodes and one skeleton:
+        1.45-1.5 per step, 3.6 steps per frame against the half cycle's 4.8; measured, the two about even in
+        time, the half cycle 2-4 % slower in most runs). Above two, graph-wide modes are what CG crawls on
+        (one arm possessing a body: 2.4-3.3) and the coarse space of `coarse_regions` regions joins the
+        two-level: there 2.1 instead of 3.3-4.8 steps per frame, 3.2 instead of 4.1-4.5 CPU ms at 256
+        nodes, and the exact solve's energies to 2e-5 instead of 1.2-1.4e-3 (median). On the walk with two
+        skeletons it would cost 0.2 ms per step for 0.3 fewer steps, so it stays out there."""
         name, rate = self.settings.preconditioner, self._cg_per_step
         if name != "adaptive":
             return PRECONDITIONERS[name], self.settings.coarse_regions > 0 and name in ("half_cycle", "two_level", "block_jacobi")
-        if rate is not None and self.settings.coarse_regions:
-            self._coarse_on = rate > (self.COARSE_OFF if self._coarse_on else self.COARSE_ON)
         if rate is not None and rate > self.ADAPTIVE_CG_PER_STEP:
             return TWO_LEVEL, self._coarse_on
         return HALF_CYCLE, False

@@ -25,11 +25,6 @@ from ..skeleton.rig import attach
 
 
 
-# The live solve's settings: the solver's defaults without the coarse space. With it (coarse_regions=8) the
-# walk's hard stretches took runs of 24-29 ms CPU solves at 256 nodes and two skeletons (p99 28 ms, against
-# 16 without), and every frame waited behind them: bench_network's capture -> published p99 50-63 ms
-# against 39-43 without (4 runs each, load 1.9-3.5), medians 1-3 ms lower with it. Latency is the live target.
-LIVE = SolverSettings(coarse_regions=0)
 
 
 class SolverLost(KinetreError):
@@ -44,7 +39,7 @@ class InlineSolver:
         self.cpu_ms = 0.0  # CPU time of the last solve
         self._newer = False  # a frame newer than the one being solved has arrived
 
-    async def attach(self, graph, skeletons, settings: SolverSettings = LIVE) -> list[np.ndarray]:
+    async def attach(self, graph, skeletons, settings: SolverSettings = SolverSettings()) -> list[np.ndarray]:
         self.rig = await asyncio.to_thread(attach, graph, skeletons, settings=settings)
         return self.rig.attached_joints
 
@@ -208,7 +203,7 @@ class SolveWorker:
         """Spawn the process now (instead of at the first possession); returns its pid."""
         return await self._call("ping")
 
-    async def attach(self, graph, skeletons, settings: SolverSettings = LIVE) -> list[np.ndarray]:
+    async def attach(self, graph, skeletons, settings: SolverSettings = SolverSettings()) -> list[np.ndarray]:
         return await self._call("attach", graph, skeletons, settings)
 
     def newer_frame(self) -> None:
