@@ -154,7 +154,8 @@ class _Delivery(asyncio.Queue):
         self.sub, self.take = sub, take
 
     def put_nowait(self, msg) -> None:
-        self.sub._pending_size -= len(msg.data)  # counted as pending by the reader just before
+        if hasattr(self.sub, "_pending_size"):  # counted as pending by the reader just before
+            self.sub._pending_size -= len(msg.data)
         try:
             self.take(msg)
         except Exception:  # one bad message must not stop the connection's reader
