@@ -113,7 +113,6 @@ class CoordinateSplit:
     def for_active(self, active: np.ndarray):
         """(K as CSR arrays (indptr, indices, data), factor tuple for `krylov`, K's (N, 4, 4) diagonal
         blocks) for this tracked set."""
-        key = np.asarray(active, dtype=np.float64).tobytes()
         return self._for_active(active)[:3]
 
     def coarse(self, active: np.ndarray) -> np.ndarray:
