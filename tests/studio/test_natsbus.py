@@ -12,9 +12,11 @@ from studio.nats_server import ROOMS, NatsServer
 from studio.studio_ws import frame_message
 
 from kinetre.studio.app import data_path, prepare_mesh
+from kinetre.studio import natsbus
 from kinetre.studio.channels import Frame, Hub
 from kinetre.studio.natsbus import NatsChannels, _Delivery, _Resumed
-from kinetre.studio.scene import Scene
+from kinetre.studio.remote import SceneMirror
+from kinetre.studio.scene import STATE, Scene
 
 
 @pytest.fixture(scope="module")
@@ -51,6 +53,7 @@ def test_frames_reach_the_wire_in_the_publishers_call(nats):
         for seq in range(1, 51):
             sender.publish(Frame("kinetre.command.x", seq, float(seq), b"frame %d" % seq))
         assert sender.nc.stats["out_msgs"] - before == 50 and sender.counters.published == 50
+        assert sender.counters.written == 50  # nothing else pending: every PUB went to the socket at once
         got = await collect(sub, 50)
         await sender.close()
         await receiver.close()
@@ -60,6 +63,78 @@ def test_frames_reach_the_wire_in_the_publishers_call(nats):
     assert [f.data for f in got] == [b"frame %d" % s for s in range(1, 51)]
 
 
+def test_frames_written_at_once_keep_their_order_behind_nats_pys_buffer(nats):
+    """A frame is written to the socket in the publisher's call only when nats-py's pending buffer is empty:
+    behind a message nats-py still holds (a request, a reply, a command published through it) it waits its
+    turn in that buffer, so the receiver gets every frame in publishing order."""
+    async def go():
+        sender, receiver = await pair(nats.url)
+        sub = receiver.subscribe("kinetre.command.z")
+        await receiver.ready()
+        for seq in range(1, 61):
+            frame = Frame("kinetre.command.z", seq, float(seq), b"%d" % seq)
+            if seq % 4 == 0:  # through nats-py: into its pending buffer, written later by its flusher task
+                await sender.nc.publish("kinetre.a.command.z", natsbus.pack(frame))
+            else:
+                sender.publish(frame)
+            if seq % 12 == 0:
+                await asyncio.sleep(0)  # the flusher runs: the buffer is empty again
+        got = await collect(sub, 60)
+        await sender.close()
+        await receiver.close()
+        return got, sender.counters
+    got, counters = asyncio.run(go())
+    assert [f.seq for f in got] == list(range(1, 61))
+    assert counters.published == 45 and 0 < counters.written < 45  # some waited behind nats-py's buffer
+
+
+def test_batched_subjects_wait_for_nats_pys_flusher_and_keep_the_order(nats):
+    """Frames on a `batched` subject are never written in the publisher's call (nats-py's flusher writes
+    everything pending in one go); a frame on another subject behind them waits its turn."""
+    async def go():
+        sender, receiver = await pair(nats.url)
+        sub = receiver.subscribe("kinetre.command.*")
+        await receiver.ready()
+        sender.batched = frozenset({"kinetre.command.other"})
+        for seq in range(1, 21):
+            subject = "kinetre.command.other" if seq % 2 else "kinetre.command.mine"
+            sender.publish(Frame(subject, seq, float(seq), b"%d" % seq))
+        written_in_burst = sender.counters.written
+        await asyncio.sleep(0.05)  # the flusher has written the burst
+        sender.publish(Frame("kinetre.command.mine", 21, 21.0, b"21"))
+        got = await collect(sub, 21)
+        await sender.close()
+        await receiver.close()
+        return written_in_burst, got, sender.counters
+    written_in_burst, got, counters = asyncio.run(go())
+    assert written_in_burst == 0  # the first frame was batched: every later one waited behind it
+    assert counters.written == 1 and counters.published == 21
+    assert [f.seq for f in got] == list(range(1, 22))
+
+
+def test_gateway_batches_the_frames_of_users_who_do_not_possess():
+    """The gateway's mirror of the scene's state names the users nobody waits for: their skeleton frames
+    are batched, the possessing users' frames are written at once."""
+    async def go():
+        bus = NatsChannels("a")  # not connected: local delivery only
+        mirror = SceneMirror(bus)
+        task = asyncio.get_running_loop().create_task(mirror.run())
+        await asyncio.sleep(0)
+        users = [{"client": "s1-c1", "possessing": True}, {"client": "s1-c2", "possessing": False},
+                 {"client": "s2-c1", "possessing": False}]
+        bus.deliver_local(Frame(STATE, 1, 0.0, json.dumps({"type": "state", "users": users}).encode()))
+        await asyncio.sleep(0.01)
+        first = bus.batched
+        users[1]["possessing"] = True
+        bus.deliver_local(Frame(STATE, 2, 0.0, json.dumps({"type": "state", "users": users}).encode()))
+        await asyncio.sleep(0.01)
+        task.cancel()
+        return first, bus.batched
+    first, then = asyncio.run(go())
+    assert first == {"kinetre.skeleton.s1-c2", "kinetre.skeleton.s2-c1"}
+    assert then == {"kinetre.skeleton.s2-c1"}
+
+
 def test_a_publish_that_must_wait_for_the_flusher_still_arrives_in_order(nats):
     """With nats-py's pending buffer over its limit every publish waits for the flusher: the rest of the
     call goes on in a task, and nothing is lost or reordered."""
@@ -67,6 +142,7 @@ def test_a_publish_that_must_wait_for_the_flusher_still_arrives_in_order(nats):
         sender, receiver = await pair(nats.url)
         sub = receiver.subscribe("kinetre.command.y")
         await receiver.ready()
+        sender._write_now = lambda subject, payload: False  # through nats-py's buffer, as when it holds data
         sender.nc._max_pending_size = 1  # every PUB is over the limit: nats-py forces a flush and waits
         for seq in range(1, 31):
             sender.publish(Frame("kinetre.command.y", seq, float(seq), bytes(1000)))

@@ -188,6 +188,7 @@ async def subscribe_direct(nc, subject: str, take):
 @dataclass
 class BusCounters:
     published: int = 0
+    written: int = 0  # of those, written to the socket in the publisher's call (`NatsChannels._write_now`)
     offline: int = 0  # frames published while the server was unreachable (dropped by policy)
     received: int = 0
     late: int = 0  # frames older than the newest delivered on their subject (dropped by policy)
@@ -213,6 +214,10 @@ class NatsChannels:
         self._local: dict[str, list[Subscription]] = {}  # wire pattern → our subscriptions
         self._newest: dict[str, tuple[int, float]] = {}  # subject → (seq, t) last delivered
         self._finishing: set[asyncio.Task] = set()  # publishes that had to wait for the connection's flusher
+        self._plain: dict[str, bool] = {}  # wire subject → fit for a PUB line as it is
+        # studio subjects nobody waits for: their frames are left to nats-py's flusher, which writes all that
+        # is pending in one go (fewer writes and fewer wake-ups of nats-server and subscribers)
+        self.batched: frozenset[str] = frozenset()
 
     @classmethod
     async def connect(cls, url: str, room: str = "main", token: str | None = None, name: str = "kinetre",
@@ -283,17 +288,27 @@ class NatsChannels:
     def publish(self, frame: Frame) -> None:
         """Hand the frame to the connection now, in the caller's own call (no task of ours in between).
 
-        nats-py's `publish` is a coroutine that, while connected, does not suspend: it appends the PUB
-        command to the connection's pending buffer and wakes the connection's flusher task, which writes
-        everything pending in one go. So it is run here to completion synchronously; only when it does
-        suspend (the pending buffer is over its `pending_size` and it waits for the flusher) is the rest left
-        to a task, the command being queued already, so order is kept either way.
+        When nothing is waiting in nats-py's pending buffer, the PUB command is written to the socket here
+        (`_write_now`), unless its subject is in `batched`. Otherwise it goes through nats-py's `publish`, a
+        coroutine that, while connected, does not suspend: it appends the command to the pending buffer and
+        wakes the connection's flusher task, which writes everything pending in one go. So it is run here to
+        completion synchronously; only when it does suspend (the pending buffer is over its `pending_size` and
+        it waits for the flusher) is the rest left to a task, the command being queued already, so order is
+        kept either way.
         """
         if self.nc is None or not self.nc.is_connected:
             self.counters.offline += 1
             return
         subject = self.wire(frame.subject)
-        call = self.nc.publish(subject, pack(frame))
+        payload = pack(frame)
+        plain = self._plain.get(subject)
+        if plain is None:  # a subject that cannot be one PUB line goes to nats-py, which refuses it
+            plain = self._plain[subject] = not any(c in subject for c in " \t\r\n")
+        if plain and frame.subject not in self.batched and self._write_now(subject, payload):
+            self.counters.published += 1
+            self.counters.written += 1
+            return
+        call = self.nc.publish(subject, payload)
         try:
             waiting = call.send(None)
         except StopIteration:
@@ -305,6 +320,31 @@ class NatsChannels:
             return
         self.counters.published += 1
         self._finishing.add(asyncio.get_running_loop().create_task(self._finish(_Resumed(call, waiting), subject)))
+
+    def _write_now(self, subject: str, payload: bytes) -> bool:
+        """Write one PUB straight to the connection's socket when that keeps nats-py's order and limits.
+
+        nats-py's flusher task would write it one event-loop iteration later, behind whatever else is ready
+        then (on a busy studio, a few ms at the tail for every transform block and skeleton frame). Only
+        while connected (not draining or reconnecting: then nats-py's own buffering applies), with its
+        pending buffer empty (everything published before is already in the socket's hands, so the order
+        holds), a plain TCP/TLS stream (nats-py's `_io_writer`; its WebSocket transport queues writes in a
+        task of its own) with nothing buffered in the transport (else nats-py's flusher waits for it to
+        drain), and a payload within the server's limit (nats-py raises on a larger one). Uses nats-py 2.x
+        internals (bounded in pyproject); when one is missing, every frame goes through `nc.publish`.
+        """
+        nc = self.nc
+        try:
+            writer = nc._transport._io_writer
+            if (nc._status != nc.CONNECTED or nc._pending_data_size or len(payload) > nc._max_payload
+                    or writer is None or writer.transport.is_closing() or writer.transport.get_write_buffer_size()):
+                return False
+            writer.write(b"PUB %b %d\r\n%b\r\n" % (subject.encode(), len(payload), payload))  # NATS's PUB
+        except AttributeError:
+            return False
+        nc.stats["out_msgs"] += 1
+        nc.stats["out_bytes"] += len(payload)
+        return True
 
     async def _finish(self, call, subject: str) -> None:
         try:

@@ -119,6 +119,9 @@ class SceneMirror:
                 if state.get("scene_lost"):
                     continue  # our own announcement, delivered locally
                 self.latest, self.heard = state, time.monotonic()
+                # only the possessing users' frames are waited for (by the solve): the others' may be batched
+                self.hub.batched = frozenset(f"kinetre.skeleton.{u['client']}" for u in state.get("users", ())
+                                             if not u.get("possessing"))
                 if self.lost:
                     self.lost = False
                     log.info("scene is back")
