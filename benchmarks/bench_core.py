@@ -268,26 +268,42 @@ def skinning_case(mesh: kinetre.Mesh, count: int = 1_000_000):
 
 
 def bench_skin():
-    """The 1M-vertex blend on this process's numba threads (one under `make bench`: the figure that counts),
-    then a separate `"threads": 2` record from a child process allowed two (prange over the vertices)."""
+    """The 1M-vertex blend per frame on this process's numba threads (one under `make bench`: the figure that
+    counts): `SkinTable.skin` (float32, what video frames use; the record without "path"), then the float64
+    `skin_vertices` reference, 15 frames each; then a separate `"threads": 2` record from a child process
+    allowed two (prange over chunks of vertices)."""
     import numba
-    from kinetre.deform.skinning import skin_vertices
-    verts, idx, w, mats, _ = skinning_case(subdivided(kinetre.load_mesh(DATA / "meshes" / "armadillo.obj"), 2))
-    skin_vertices(verts[:10], idx[:10], w[:10], mats)
-    out = np.empty_like(verts)
-    times, cpu = [], []
-    for _ in range(10):
-        t, c = time.perf_counter(), time.process_time()
-        skin_vertices(verts, idx, w, mats, out=out)
-        times.append(time.perf_counter() - t)
-        cpu.append(time.process_time() - c)
-    # wall median and minimum, and the median CPU time of the process (every thread): on a shared machine
-    # the wall figures include the time other programs hold the cores
-    record = {"bench": "skin", "vertices": len(verts), "ms": round(float(np.median(times)) * 1e3, 2),
-              "ms_min": round(min(times) * 1e3, 2), "cpu_ms": round(float(np.median(cpu)) * 1e3, 2)}
-    if numba.config.NUMBA_NUM_THREADS > 1:
-        record["threads"] = numba.config.NUMBA_NUM_THREADS
-    emit(record)
+    from kinetre.deform.skinning import SkinTable, skin_vertices
+    verts, idx, w, mats, graph = skinning_case(subdivided(kinetre.load_mesh(DATA / "meshes" / "armadillo.obj"), 2))
+    t = time.process_time()
+    table = SkinTable.prepare(verts, idx, w, graph.node_count)
+    prepare = time.process_time() - t
+    out32, out64 = np.empty((len(verts), 3), np.float32), np.empty_like(verts)
+    calls = {"float32": lambda: table.skin(mats, out32),
+             "float64": lambda: skin_vertices(verts, idx, w, mats, out=out64)}
+    for call in calls.values():
+        call()  # compile or load
+    error = float(np.abs(out32 - out64).max() / np.linalg.norm(np.ptp(verts, axis=0)))
+    times, cpu = {k: [] for k in calls}, {k: [] for k in calls}
+    for name, call in calls.items():
+        for _ in range(15):
+            t, c = time.perf_counter(), time.process_time()
+            call()
+            times[name].append(time.perf_counter() - t)
+            cpu[name].append(time.process_time() - c)
+    threads = {"threads": numba.config.NUMBA_NUM_THREADS} if numba.config.NUMBA_NUM_THREADS > 1 else {}
+    for name in calls:
+        # wall median and minimum, and the median CPU time of the process (every thread): on a shared machine
+        # the wall figures include the time other programs hold the cores
+        record = {"bench": "skin", "vertices": len(verts), "nodes": graph.node_count,
+                  "ms": round(float(np.median(times[name])) * 1e3, 2), "ms_min": round(min(times[name]) * 1e3, 2),
+                  "cpu_ms": round(float(np.median(cpu[name])) * 1e3, 2), **threads}
+        if name == "float32":
+            record.update({"prepare_cpu_ms": round(prepare * 1e3, 1), "max_error_of_bbox_diagonal": error,
+                           "target_ms": 15.0})
+        else:
+            record["path"] = "float64_reference"
+        emit(record)
     if numba.config.NUMBA_NUM_THREADS == 1:
         import os
         import subprocess

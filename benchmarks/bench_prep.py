@@ -14,7 +14,7 @@ import numpy as np
 
 import kinetre
 from bench_core import DATA, skinning_case, subdivided
-from kinetre.deform.skinning import skin_vertices
+from kinetre.deform.skinning import SkinTable, skin_vertices
 from kinetre.graph.edges import bridge_edges, connect_components, knn_edges
 from kinetre.graph.sampling import sample_orientation_aware
 from kinetre.graph.weights import skinning_weights
@@ -47,8 +47,10 @@ def bench_graph(mesh):
 def bench_skin(mesh):
     verts, idx, w, mats, graph = skinning_case(mesh)  # 1M vertices: the mesh's own, tiled
     out = np.empty_like(verts)
+    table, out32 = SkinTable.prepare(verts, idx, w, graph.node_count), np.empty(verts.shape, np.float32)
     for label, call in (("new_array", lambda: skin_vertices(verts, idx, w, mats)),
-                        ("out_buffer", lambda: skin_vertices(verts, idx, w, mats, out=out))):
+                        ("out_buffer", lambda: skin_vertices(verts, idx, w, mats, out=out)),
+                        ("float32_table", lambda: table.skin(mats, out32))):
         call()
         runs = [cpu(call)[1:] for _ in range(30)]
         c, t = np.array(runs).T * 1e3

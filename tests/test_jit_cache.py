@@ -8,6 +8,8 @@ import subprocess
 import sys
 from pathlib import Path
 
+import pytest
+
 import kinetre
 
 HELPER = "from .jit import njit\n\n\n@njit(cache=True)\ndef offset(x):\n    return x + {value}\n"
@@ -57,3 +59,16 @@ def test_the_stamp_follows_relative_and_absolute_imports():
     assert _imported("a/__init__", sources) == {"a/b", "a/c", "a/e"}
     assert _imported("a/b", sources) == {"g"}
     assert _imported("a/e", sources) == {"h/__init__"}
+
+
+def test_slp_vectorizer_is_scoped_to_its_block():
+    from numba.core import config
+
+    from kinetre.jit import slp_vectorizer
+    before = config.SLP_VECTORIZE
+    with slp_vectorizer():
+        assert config.SLP_VECTORIZE == 1
+    assert config.SLP_VECTORIZE == before
+    with pytest.raises(RuntimeError), slp_vectorizer():
+        raise RuntimeError("a failed compilation")
+    assert config.SLP_VECTORIZE == before

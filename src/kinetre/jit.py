@@ -12,6 +12,7 @@ process that loads kernels.
 """
 from __future__ import annotations
 
+import contextlib
 import functools
 import hashlib
 import os
@@ -19,9 +20,10 @@ import re
 from pathlib import Path
 
 from numba import njit, prange
-from numba.core import caching
+from numba.core import caching, config
+from numba.core.compiler_lock import global_compiler_lock
 
-__all__ = ["njit", "prange", "sources_stamp"]
+__all__ = ["njit", "prange", "slp_vectorizer", "sources_stamp"]
 
 PACKAGE = Path(__file__).resolve().parent
 _IMPL = getattr(caching, "CacheImpl", None) or caching._CacheImpl  # numba < 0.60: _CacheImpl
@@ -29,6 +31,25 @@ _IMPL = getattr(caching, "CacheImpl", None) or caching._CacheImpl  # numba < 0.6
 # `from .a.b import c`, `from .. import (x, y as z)` and `import kinetre.a.b`, at any indentation
 _IMPORT = re.compile(rb"^[ \t]*(?:from[ \t]+(\.+)([\w.]*)[ \t]+import[ \t]+(?:\(([^)]*)\)|([\w ,\t]+))"
                      rb"|import[ \t]+kinetre\.([\w.]+))", re.MULTILINE)
+
+
+@contextlib.contextmanager
+def slp_vectorizer():
+    """Kernels compiled (or loaded from the cache) inside get LLVM's SLP vectoriser.
+
+    numba leaves it off (numba PR 8852: miscompilations with the LLVM of the time), so a loop body written
+    as 4-lane arithmetic, the way a per-vertex kernel gets SIMD without gathers, stays scalar. numba reads
+    the flag each time it builds a pass pipeline; holding its compiler lock keeps the change to the
+    compilations made here. Call a kernel inside only for its first call per signature (the lock
+    serialises every compilation in the process); the kernel's tests check its results.
+    """
+    with global_compiler_lock:
+        before = config.SLP_VECTORIZE
+        config.SLP_VECTORIZE = 1
+        try:
+            yield
+        finally:
+            config.SLP_VECTORIZE = before
 
 
 @functools.cache

@@ -10,7 +10,7 @@ would be ours to write). Measured on the 2-core machine while ~6 other jobs ran 
 `write_video` including skinning and H.264 encoding: spot (5.9k triangles) 6 fps, armadillo (86k) 3.7 fps,
 the 772k-triangle elephant 3.1 fps through its 60k-triangle level of detail (`cluster_lod`).
 
-Each frame the mesh is skinned on the CPU by `kinetre.skin`'s numba kernel (Eq. 2; llvmpipe runs vertex
+Each frame the mesh is skinned on the CPU in float32 (`SkinTable`, Eq. 2; llvmpipe runs vertex
 shaders on one thread, so skinning in the shader was slower) and drawn twice: into a 1024² shadow map
 from the key light, then with 4x MSAA into the frame.
 

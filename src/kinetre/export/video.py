@@ -16,7 +16,7 @@ import numpy as np
 from PIL import Image, ImageDraw
 
 from ..deform.pose import GraphPose
-from ..deform.skinning import skin_vertices
+from ..deform.skinning import SkinTable
 from ..errors import ExportError
 from ..graph.graph import DeformationGraph
 from ..mesh.mesh import Mesh
@@ -81,17 +81,20 @@ def write_video(path, mesh: Mesh, graph: DeformationGraph, poses: list[GraphPose
     keep, faces = cluster_lod(mesh.vertices, mesh.faces, max_faces)
     uvs = None if mesh.uvs is None else mesh.uvs[keep]
     colors = None if colors is None else colors[keep]
-    vertices, normals = mesh.vertices[keep], mesh.normals[keep]
     joints, weights = graph.vertex_nodes[keep], graph.vertex_weights[keep]
+    # float32 skinning into two reused buffers: what the renderer uploads
+    points = SkinTable.prepare(mesh.vertices[keep], joints, weights, graph.node_count)
+    directions = SkinTable.prepare(mesh.normals[keep], joints, weights, graph.node_count, directions=True)
+    positions, normals = np.empty((len(keep), 3), np.float32), np.empty((len(keep), 3), np.float32)
     renderer = MeshRenderer(len(keep), faces, camera, (width, height), uvs=uvs, colors=colors, texture=texture)
 
     def frames():
         try:
             for k, pose in enumerate(poses):
                 m = pose.node_matrices(graph.nodes)
-                positions = skin_vertices(vertices, joints, weights, m)
+                points.skin(m, positions)
                 m[:, :3, 3] = 0.0               # normals follow the blended linear part only
-                frame = renderer.render(positions, skin_vertices(normals, joints, weights, m))
+                frame = renderer.render(positions, directions.skin(m, normals))
                 if skeletons is not None and skeletons[k]:
                     frame = draw_skeletons(frame, skeletons[k], camera)
                 yield frame
