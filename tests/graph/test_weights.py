@@ -51,3 +51,20 @@ def test_chair_leg_not_pulled_by_neighbouring_leg():
     d = np.linalg.norm(m.vertices[:, None] - g.nodes[None], axis=2)
     eu = np.argsort(d, axis=1)[:, :4]
     assert (node_side[eu] != side[:, None])[inner].any()
+
+
+def test_weights_added_later_in_a_thread_are_the_same(data_dir):
+    # `kinetre animate` builds the graph without weights and weighs it in a thread beside the solve
+    from concurrent.futures import ThreadPoolExecutor
+
+    from kinetre.graph.build import with_weights
+    m = kinetre.load_mesh(data_dir / "meshes" / "spot.obj")
+    whole = kinetre.build_graph(m, nodes=128)
+    bare = kinetre.build_graph(m, nodes=128, weights=False)
+    assert bare.vertex_nodes.shape == (0, 4) and bare.vertex_weights.shape == (0, 4)
+    assert np.array_equal(bare.nodes, whole.nodes) and np.array_equal(bare.edges, whole.edges)
+    with ThreadPoolExecutor(2) as pool:
+        later = [f.result() for f in [pool.submit(with_weights, bare, m) for _ in range(2)]]
+    for g in later:
+        assert np.array_equal(g.vertex_nodes, whole.vertex_nodes)
+        assert np.array_equal(g.vertex_weights, whole.vertex_weights)

@@ -1,6 +1,10 @@
 """`build_graph`: mesh → orientation-aware nodes → edges → bridges → skinning weights (SPEC §1)."""
 from __future__ import annotations
 
+import dataclasses
+
+import numpy as np
+
 from ..errors import BadGraphError
 from ..mesh.mesh import Mesh
 from .edges import bridge_edges, connect_components, knn_edges
@@ -10,7 +14,7 @@ from .weights import skinning_weights
 
 
 def build_graph(mesh: Mesh, nodes: int | None = 128, radius: float | None = None, seed: int = 0,
-                k: int = 4) -> DeformationGraph:
+                k: int = 4, weights: bool = True) -> DeformationGraph:
     """Build the deformation graph of a mesh, once per mesh.
 
     Parameters
@@ -24,6 +28,9 @@ def build_graph(mesh: Mesh, nodes: int | None = 128, radius: float | None = None
         Sampling seed; the graph is a function of (mesh, nodes/radius, seed).
     k : int
         Neighbours per node (4 in the paper).
+    weights : bool
+        False leaves `vertex_nodes` / `vertex_weights` empty, (0, 4), for a caller that computes them
+        with `with_weights` beside other work (the nodes and edges do not depend on them).
 
     Returns
     -------
@@ -39,6 +46,12 @@ def build_graph(mesh: Mesh, nodes: int | None = 128, radius: float | None = None
     edges = knn_edges(positions, normals, k)
     edges, added = connect_components(positions, edges)
     bridges = bridge_edges(len(positions), edges) | added
-    idx, w = skinning_weights(mesh.vertices, mesh.normals, positions, normals, r)
-    return DeformationGraph(nodes=positions, normals=normals, edges=edges, bridges=bridges, radius=r,
-                            vertex_nodes=idx, vertex_weights=w)
+    graph = DeformationGraph(nodes=positions, normals=normals, edges=edges, bridges=bridges, radius=r,
+                             vertex_nodes=np.empty((0, 4), np.int32), vertex_weights=np.empty((0, 4), np.float32))
+    return with_weights(graph, mesh) if weights else graph
+
+
+def with_weights(graph: DeformationGraph, mesh: Mesh) -> DeformationGraph:
+    """`graph` with the skinning weights of `mesh`'s vertices (Eq. 2) filled in."""
+    idx, w = skinning_weights(mesh.vertices, mesh.normals, graph.nodes, graph.normals, graph.radius)
+    return dataclasses.replace(graph, vertex_nodes=idx, vertex_weights=w)

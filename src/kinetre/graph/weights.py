@@ -50,7 +50,7 @@ def _reset(best_d, best_i):
         best_i[q] = -1
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _bounds(vertices):
     """(3,), (3,): the corners of the vertices' bounding box, in one pass."""
     lo = vertices[0].copy()
@@ -62,7 +62,7 @@ def _bounds(vertices):
     return lo, hi
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _bucket(vertices, origin, inv, dims):
     """Counting sort of the vertices by cube: (order, start) with cube c's vertices order[start[c]:start[c+1]]."""
     nv = vertices.shape[0]
@@ -101,7 +101,7 @@ def _node_grid(nodes, inv, dims):
     return head, nxt
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _weights(vertices, vnormals, nodes, nnormals, origin, order, start, reach, ginv, gdims, out_idx, out_w):
     # vertices are raw; nodes are already shifted by origin (so are the vertices inside, as p - origin)
     head, nxt = _node_grid(nodes, ginv, gdims)
@@ -295,6 +295,8 @@ def _grid(extent: np.ndarray, cell: float, limit: int) -> tuple[float, np.ndarra
 def skinning_weights(vertices: np.ndarray, vertex_normals: np.ndarray, nodes: np.ndarray,
                      node_normals: np.ndarray, radius: float) -> tuple[np.ndarray, np.ndarray]:
     """Per-vertex node indices and weights (Eq. 2), ranked by the orientation-aware D.
+
+    The kernels release the GIL: `kinetre animate` runs this in a thread beside the attach and solve.
 
     Parameters
     ----------
