@@ -14,7 +14,7 @@ from studio.studio_ws import frame_message
 from kinetre.studio.app import data_path, prepare_mesh
 from kinetre.studio import natsbus
 from kinetre.studio.channels import Frame, Hub
-from kinetre.studio.natsbus import NatsChannels, _Delivery, _Resumed
+from kinetre.studio.natsbus import NatsChannels, _Delivery, _ReadNow, _Resumed
 from kinetre.studio.remote import SceneMirror
 from kinetre.studio.scene import STATE, Scene
 
@@ -55,10 +55,12 @@ def test_frames_reach_the_wire_in_the_publishers_call(nats):
         assert sender.nc.stats["out_msgs"] - before == 50 and sender.counters.published == 50
         assert sender.counters.written == 50  # nothing else pending: every PUB went to the socket at once
         got = await collect(sub, 50)
+        read_now = receiver.nc._transport._io_reader.feed_data
         await sender.close()
         await receiver.close()
-        return got
-    got = asyncio.run(go())
+        return got, read_now
+    got, read_now = asyncio.run(go())
+    assert isinstance(read_now, _ReadNow) and read_now.parsed > 0  # parsed in the socket's callback
     assert [f.seq for f in got] == list(range(1, 51))
     assert [f.data for f in got] == [b"frame %d" % s for s in range(1, 51)]
 
@@ -156,6 +158,43 @@ def test_a_publish_that_must_wait_for_the_flusher_still_arrives_in_order(nats):
     waited, left, got, counters = asyncio.run(go())
     assert waited > 0 and left == 0  # it did have to wait, and every waiting publish finished
     assert [f.seq for f in got] == list(range(1, 31)) and counters.published == 30 and counters.offline == 0
+
+
+def test_reads_are_parsed_in_the_sockets_callback_in_order():
+    """While nats-py's reader waits for data, each read is parsed at once; a parse that must wait finishes
+    in a task and the reads behind it are parsed after it, in order; while nats-py's reader is not waiting
+    (it has data of its own to parse), reads go to it as before."""
+    class Parser:
+        def __init__(self):
+            self.got, self.gate = [], None
+
+        async def parse(self, data):
+            if data == b"slow":
+                self.gate = asyncio.get_running_loop().create_future()
+                await self.gate
+            self.got.append(data)
+
+    async def go():
+        reader = asyncio.StreamReader()
+        nc = SimpleNamespace(_ps=Parser(), _transport=SimpleNamespace(_io_reader=reader))
+        assert _ReadNow.install(nc)
+        reading = asyncio.get_running_loop().create_task(reader.read(100))  # nats-py's reader, waiting
+        await asyncio.sleep(0)
+        for data in (b"a", b"slow", b"b", b"c"):
+            reader.feed_data(data)
+        during = list(nc._ps.got)
+        nc._ps.gate.set_result(None)
+        for _ in range(5):
+            await asyncio.sleep(0)
+        after = list(nc._ps.got)
+        idle_reader_got_nothing = not reading.done()
+        reading.cancel()
+        await asyncio.sleep(0)
+        reader.feed_data(b"d")  # nobody waits in read(): nats-py's own buffer keeps it for its reader
+        return during, after, idle_reader_got_nothing, bytes(reader._buffer), nc._ps.got
+    during, after, idle, buffered, got = asyncio.run(go())
+    assert during == [b"a"] and after == [b"a", b"slow", b"b", b"c"] and idle
+    assert buffered == b"d" and got == after
 
 
 def test_resumed_coroutine_ends_as_the_coroutine_would():
