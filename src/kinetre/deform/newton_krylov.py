@@ -16,7 +16,21 @@ import numpy as np
 from ..jit import njit
 from .gradient import energy_gradient
 from .coarse_space import coarse_factor
-from .krylov import COORDINATE, local_blocks, node_factors, pcg, stretch_curvature
+from .krylov import BLOCK_JACOBI, COORDINATE, local_blocks, node_factors, pcg, stretch_curvature
+
+
+# The coarse space serves only a frame's first two linear solves, each with its factor made afresh. It carries
+# the large, slow motions (a whole limb turning) of a frame's first steps. Steps after those mostly creep (a
+# pose the targets cannot quite reach: Gauss-Newton converges linearly, ~0.1-1 % of E a step), and there it
+# costs a factor and a coarse solve per CG iteration for nothing. A factor made once per frame went stale
+# as the pose moved: CG then ran to its cap, and a frame that does not converge in CG cannot stop before its
+# last step. bench_network's live solve replayed (two legs on Spot, 253 nodes, 760 frames; thread CPU ms
+# per frame, median / p99): factor once a frame, every step 4.4-5.4 / 25.7-29.2 (72 frames out of steps,
+# 14.6 CG iterations a frame); refreshed, every step 4.6-5.4 / 24.8-27.7; refreshed, first two steps
+# 4.5 / 19.0 (53, 9.7) against 5.6 / 19.6 (60, 14.1) without the coarse space in the same run. One step
+# only loses the one-arm agreement (median 1.7e-3 above exact; two: passes). Block Jacobi keeps it on every
+# step: nothing else there carries the graph-wide coupling.
+COARSE_STEPS = 2
 
 
 @njit(cache=True)
@@ -27,8 +41,9 @@ def gauss_newton_pcg(x, g, edges, con_nodes, con_weights, con_points, targets, a
     """Minimise E from x (N, 12, updated in place). Returns (E, iterations, accepted, CG iterations,
     number of entries written to `energies` (E after each accepted step, from the initial E), λ).
     `coarse` = (factor (12m, 12m), region, offsets) and kc: the coarse space of `coarse_space.py` (a factor of
-    shape (0, 0): none), factored at the frame's first step and again only when λ + 0.01 has moved 4×:
-    a preconditioner may lag the pose, and its factor costs as much as a step's other work."""
+    shape (0, 0): none). It serves the frame's first `COARSE_STEPS` linear solves only, factored afresh for
+    each step (the pose moved: its node blocks changed) and for a retry only when λ + 0.01 has moved 4×;
+    see `COARSE_STEPS` for why."""
     n = x.shape[0]
     m = 12 * n
     grad = np.empty(m)
@@ -46,7 +61,9 @@ def gauss_newton_pcg(x, g, edges, con_nodes, con_weights, con_points, targets, a
     decrease = 0.0
     trial = np.empty(m)
     coarse_lam = -1.0  # the damping the coarse factor was made with (-1: none yet, refactor)
+    no_coarse = (np.zeros((0, 0)), coarse[1], coarse[2])
     while iterations < max_iterations and energy > energy_floor:
+        coarse_lam = -1.0  # a new pose: the factor's node blocks are stale
         for j in range(n):
             for a in range(3):
                 for b in range(3):
@@ -85,10 +102,11 @@ def gauss_newton_pcg(x, g, edges, con_nodes, con_weights, con_points, targets, a
             if kind != COORDINATE:
                 node_factors(k_blocks, rot, rig, bridges, damp, node_fac)
             # λ below 1e-2 barely changes H's diagonal (λ diag(H) is added to it): not worth a refactor
-            if coarse[0].shape[0] and not (0.25 * (coarse_lam + 1e-2) <= lam + 1e-2 <= 4.0 * (coarse_lam + 1e-2)):
+            use = coarse if iterations <= COARSE_STEPS or kind == BLOCK_JACOBI else no_coarse
+            if use[0].shape[0] and not (0.25 * (coarse_lam + 1e-2) <= lam + 1e-2 <= 4.0 * (coarse_lam + 1e-2)):
                 coarse_factor(kc, coarse[1], coarse[2], rot, rig, bridges, damp, coarse[0])
                 coarse_lam = lam
-            dy, it, converged = pcg(kind, fac, kp, ki, kx, rot, rig, bridges, damp, node_fac, coarse, neg,
+            dy, it, converged = pcg(kind, fac, kp, ki, kx, rot, rig, bridges, damp, node_fac, use, neg,
                                     cg_iterations, cg_tolerance)
             cg_total += it
             predicted = neg @ dy  # the model's decrease, up to the damping term

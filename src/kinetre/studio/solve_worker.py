@@ -24,14 +24,6 @@ from ..errors import KinetreError
 from ..skeleton.rig import attach
 
 
-
-# The live solve's settings: the solver's defaults without the coarse space. The adaptive choice still brings
-# it in on the live bench's frames (two users, latest-wins, frames skipped under load: bigger jumps than the
-# offline replays), and every frame then waits behind its longer solves: bench_network on the idle machine,
-# same code otherwise, p99 embedded 58-59 ms and NATS 70 ms with it (two runs) against 40 and 48 without.
-LIVE = SolverSettings(coarse_regions=0)
-
-
 class SolverLost(KinetreError):
     """The solve process died (killed, or out of memory); the scene starts a new one and re-attaches."""
 
@@ -44,7 +36,7 @@ class InlineSolver:
         self.cpu_ms = 0.0  # CPU time of the last solve
         self._newer = False  # a frame newer than the one being solved has arrived
 
-    async def attach(self, graph, skeletons, settings: SolverSettings = LIVE) -> list[np.ndarray]:
+    async def attach(self, graph, skeletons, settings: SolverSettings = SolverSettings()) -> list[np.ndarray]:
         self.rig = await asyncio.to_thread(attach, graph, skeletons, settings=settings)
         return self.rig.attached_joints
 
@@ -208,7 +200,7 @@ class SolveWorker:
         """Spawn the process now (instead of at the first possession); returns its pid."""
         return await self._call("ping")
 
-    async def attach(self, graph, skeletons, settings: SolverSettings = LIVE) -> list[np.ndarray]:
+    async def attach(self, graph, skeletons, settings: SolverSettings = SolverSettings()) -> list[np.ndarray]:
         return await self._call("attach", graph, skeletons, settings)
 
     def newer_frame(self) -> None:
