@@ -134,6 +134,25 @@ def test_adaptive_choice_follows_the_cg_iterations_per_step(armadillo_system):
     assert plain._preconditioner() == (TWO_LEVEL, False)
 
 
+def _two_legs(g, frames, lag=7):
+    """Two skeletons possess one leg each of graph g, the second `lag` frames ahead, once round the clip
+    (+12 frames), with and without the coarse space: {8: rows, 0: rows}, a row per frame (coarse space in
+    use, Gauss-Newton steps, CG iterations, E). E falls at every step."""
+    seq = [[frames[k % len(frames)], frames[(k + lag) % len(frames)]] for k in range(len(frames) + 12)]
+    runs = {}
+    for regions in (8, 0):
+        rig = kinetre.attach(g, seq[0], subset=["left leg", "right leg"],
+                             settings=SolverSettings(coarse_regions=regions))
+        runs[regions] = []
+        for cur in seq[1:]:
+            coarse = rig.solver._preconditioner()[1]
+            rig.solve(cur)
+            rep = rig.last_report
+            assert np.all(np.diff(rep.energies) < 0)
+            runs[regions].append((coarse, rep.iterations, rep.cg_iterations, rep.energy))
+    return runs
+
+
 def test_frames_out_of_steps_leave_the_adaptive_choice_alone(data_dir):
     """Two skeletons each possess one leg of the body, the second 7 frames ahead on the walk: at the
     loop-arounds the legs are pulled apart and back, and the frames after run out of Gauss-Newton steps at
@@ -145,18 +164,7 @@ def test_frames_out_of_steps_leave_the_adaptive_choice_alone(data_dir):
     take = load_bvh(data_dir / "bvh" / "cmu_12_01_walk.bvh")
     frames = [take.frame(i) for i in range(0, len(take), 4)]
     g = kinetre.build_graph(capsule_body(frames[0], radius=0.06), nodes=256, seed=0)
-    seq = [[frames[k % len(frames)], frames[(k + 7) % len(frames)]] for k in range(len(frames) + 12)]
-    runs = {}
-    for regions in (8, 0):
-        rig = kinetre.attach(g, seq[0], subset=["left leg", "right leg"],
-                             settings=SolverSettings(coarse_regions=regions))
-        runs[regions] = []
-        for cur in seq[1:]:
-            coarse = rig.solver._preconditioner()[1]
-            rig.solve(cur)
-            rep = rig.last_report
-            assert np.all(np.diff(rep.energies) < 0)
-            runs[regions].append((coarse, rep.iterations, rep.cg_iterations))
+    runs = {regions: [r[:3] for r in rows] for regions, rows in _two_legs(g, frames).items()}
     out_of_steps = [r for r in runs[0] if r[1] >= SolverSettings().max_iterations]
     assert len(out_of_steps) >= 3, runs[0]  # the case has such frames
     assert not any(c and steps >= SolverSettings().max_iterations for c, steps, _ in runs[8]), runs[8]
@@ -207,18 +215,7 @@ def test_live_two_legs_on_spot_coarse_space_adds_no_tail(data_dir):
                       (float(centre[0]), float(first.positions[first.tracked, 1].min()), float(centre[2])), 0.0)
     local = [place.to_local(f) for f in walk]
     g = kinetre.build_graph(mesh, nodes=256, seed=0)
-    seq = [[local[k % len(local)], local[(k + 7) % len(local)]] for k in range(len(local) + 12)]
-    runs = {}
-    for regions in (8, 0):
-        rig = kinetre.attach(g, seq[0], subset=["left leg", "right leg"],
-                             settings=SolverSettings(coarse_regions=regions))
-        runs[regions] = []
-        for cur in seq[1:]:
-            coarse = rig.solver._preconditioner()[1]
-            rig.solve(cur)
-            rep = rig.last_report
-            assert np.all(np.diff(rep.energies) < 0)
-            runs[regions].append((coarse, rep.iterations, rep.cg_iterations, rep.energy))
+    runs = _two_legs(g, local)
     with_, without = np.array(runs[8]), np.array(runs[0])
     steps = SolverSettings().max_iterations
     assert with_[:, 0].mean() > 0.5  # the case is one for the coarse space
