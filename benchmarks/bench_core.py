@@ -57,6 +57,8 @@ def bench_build_graph():
 # timed here: the bench stays a few minutes.
 DESIGNS = {
     "pcg_adaptive": SolverSettings(),
+    # session 11's default: the same preconditioners, a frame ends only on a step that gained < 1e-3 of E
+    "pcg_adaptive_s11": SolverSettings(stop="decrease"),
     "pcg_adaptive_no_coarse": SolverSettings(coarse_regions=0),
     "pcg_half_cycle": SolverSettings(preconditioner="half_cycle", coarse_regions=0),
     "pcg_half_cycle_gauss_newton_blocks": SolverSettings(preconditioner="half_cycle", coarse_regions=0,
@@ -69,7 +71,7 @@ DESIGNS = {
 }
 # what a solve carries over to the next frame, restored between the timed runs of one frame
 _SOLVER_STATE = ("_lam", "_lam_exact", "_last_energy", "_jump_left", "_active_key", "_linear_data", "_factored",
-                 "_diag", "_cg_per_step", "_coarse_on")
+                 "_diag", "_cg_per_step", "_coarse_on", "_contraction")
 
 
 def timed_solve(rig, frame, repeats):
@@ -183,6 +185,57 @@ def bench_solve(cases=((256, 1), (256, 2), (512, 1), (512, 2), (256, 1, "right a
                   "energy_vs_exact_max": float(f"{rel.max():.2e}"),
                   "energy_never_rose": bool(run["monotone"].all()),
                   "backend": rigs[name].solver.backend})
+
+
+# the reference for same-start agreement: the exact solve run on until a step gains less than 1e-7 of E (the
+# default exact stop, 1e-3, ends up to a few 1e-2 above the minimum on some frames: see bench_solve_agreement)
+EXACT_TIGHT = SolverSettings(method="exact", relative_tolerance=1e-7, max_iterations=30)
+
+
+def same_start_gaps(graph, skeletons, designs, subset=None, count=64):
+    """Per design (name → SolverSettings), E / E_ref − 1 frame by frame when every design starts each frame
+    from the same state: the tight exact reference's previous pose (and the pose before it, for the
+    constant-velocity guess). Each design keeps its own damping and adaptive state. Unlike `replay`, where
+    every design warm-starts from its own poses, the trajectories cannot drift apart: the gap is the frame's
+    own stopping accuracy. Returns ({name: gaps}, {name: steps}) over the walk's first `count` frames."""
+    frames, second = walk_frames()
+    binds = [frames[0], second[0]][:skeletons]
+    ref = kinetre.attach(graph, binds, subset=subset, settings=EXACT_TIGHT)
+    rigs = {n: kinetre.attach(graph, binds, subset=subset, settings=s) for n, s in designs.items()}
+    gaps, steps = {n: [] for n in designs}, {n: [] for n in designs}
+    for i in range(1, min(count, len(frames))):
+        cur = [frames[i], second[i]][:skeletons]
+        x, before = ref._x.copy(), ref._x_before
+        e_ref = ref.solve(cur).energy
+        for name, rig in rigs.items():
+            rig._x, rig._x_before = x.copy(), None if before is None else before.copy()
+            rig.solve(cur)
+            gaps[name].append(rig.last_report.energy / e_ref - 1.0)
+            steps[name].append(rig.last_report.iterations)
+    return {n: np.array(v) for n, v in gaps.items()}, {n: np.array(v) for n, v in steps.items()}
+
+
+def bench_solve_agreement(cases=((256, 1), (256, 2), (512, 1), (512, 2), (256, 1, "right arm")), skip=5):
+    """Energy agreement with the same start (`same_start_gaps`): the default, block Jacobi, the session-11
+    default's stop rule and the exact solve with its default stop, against `EXACT_TIGHT`; median, p95 and
+    max of the relative gap over the frames after the first `skip`."""
+    frames, _ = walk_frames()
+    body = capsule_body(frames[0], radius=0.06)
+    designs = {"pcg_adaptive": DESIGNS["pcg_adaptive"], "pcg_adaptive_s11": DESIGNS["pcg_adaptive_s11"],
+               "pcg_block_jacobi_coarse": DESIGNS["pcg_block_jacobi_coarse"], "exact_gn": DESIGNS["exact_gn"]}
+    graphs = {}
+    for nodes, skeletons, *subset in cases:
+        subset = subset[0] if subset else None
+        graph = graphs.setdefault(nodes, kinetre.build_graph(body, nodes=nodes))
+        gaps, steps = same_start_gaps(graph, skeletons, designs, subset)
+        for name, gap in gaps.items():
+            gap = gap[skip:]
+            emit({"bench": "solve_agreement", "nodes": nodes, "graph_nodes": graph.node_count,
+                  "skeletons": skeletons, "subset": subset, "mode": name, "frames": len(gap),
+                  "reference": "exact, relative_tolerance 1e-7, max_iterations 30, same start each frame",
+                  "iterations_mean": round(float(steps[name][skip:].mean()), 2),
+                  "gap_median": float(f"{np.median(gap):.2e}"), "gap_p95": float(f"{np.percentile(gap, 95):.2e}"),
+                  "gap_max": float(f"{gap.max():.2e}"), "gap_min": float(f"{gap.min():.2e}")})
 
 
 def bench_solve_tail(nodes=256, lag=7, repeats=3):
@@ -312,7 +365,7 @@ def bench_skin():
 
 
 if __name__ == "__main__":
-    which = sys.argv[1:] or ["build_graph", "solve", "solve_tail", "coordinate_solve", "skin"]
+    which = sys.argv[1:] or ["build_graph", "solve", "solve_agreement", "solve_tail", "coordinate_solve", "skin"]
     for name in which:
         if name.startswith("solve:"):  # e.g. solve:256 → one node count, one and two skeletons, every design
             bench_solve(cases=tuple((int(n), k) for n in name[6:].split(",") for k in (1, 2)))

@@ -120,6 +120,11 @@ class CoordinateSplit:
         (0, 0) without a coarse space."""
         return self._for_active(active)[3]
 
+    def frame_data(self, active: np.ndarray):
+        """Everything a PCG frame needs for this tracked set, from one cache lookup: `for_active`'s three,
+        `coarse`'s P_cᵀ K P_c, and K's diagonal in the coordinate layout (4N,)."""
+        return self._for_active(active)
+
     def _for_active(self, active: np.ndarray):
         key = np.asarray(active, dtype=np.float64).tobytes()
         hit = self._cache.get(key)
@@ -132,7 +137,7 @@ class CoordinateSplit:
         self.factorisations += 1
         p = self._prolongation
         kc = np.zeros((0, 0)) if p is None else np.ascontiguousarray((p.T @ (self._matrix(data) @ p)).toarray())
-        hit = (k, self._factor(shifted), self._node_blocks(data), kc)
+        hit = (k, self._factor(shifted), self._node_blocks(data), kc, data[self.diag_pos])
         self._cache[key] = hit
         if len(self._cache) > self.CACHE:
             self._cache.popitem(last=False)
