@@ -200,8 +200,9 @@ def test_live_two_legs_on_spot_coarse_space_adds_no_tail(data_dir):
     each possessing one leg, the second 7 frames ahead on the walk. The adaptive choice has the coarse space
     on for most frames here. Each step that uses it has its factor made for that step's pose, and only a
     frame's first steps use it: no frame then needs much more CG iterations than the most any frame needs
-    without it, fewer frames run out of steps, fewer CG iterations in all, and E falls at every step. With one factor per frame (before)
-    CG ran to its cap on every step of the frames that creep: up to 137 CG iterations a frame against 48."""
+    without it, no more frames run out of steps, fewer CG iterations in all, and E falls at every step. With
+    one factor per frame (before) CG ran to its cap on every step of the frames that creep: up to 137 CG
+    iterations a frame against 48."""
     from importlib import resources
 
     from kinetre.motion.bvh import load_bvh
