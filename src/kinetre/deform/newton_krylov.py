@@ -175,12 +175,12 @@ def gauss_newton_pcg(x, g, edges, con_nodes, con_weights, con_points, targets, a
             ratio_seen = ratio
         previous = decrease
         if converged and predicted > 0.0:
-            if remaining_tolerance > 0.0:
-                # the next step would gain about `ratio` of this one (linear convergence): stop when that
-                # is negligible, instead of taking it only to see that it was. A frame's first step (the
-                # tracked motion) can gain far more than the slow modes after it, so the ratio is floored
-                if max(ratio, RATIO_FLOOR) * decrease <= remaining_tolerance * energy:
-                    break
-            elif decrease <= relative_tolerance * energies[count - 2]:
+            if decrease <= relative_tolerance * energies[count - 2]:
+                break
+            # the next step would gain about `ratio` of this one (linear convergence): stop when that is
+            # negligible, instead of taking it only to see that it was. A frame's first step (the tracked
+            # motion) can gain far more than the slow modes after it, so the ratio is floored. Never stricter
+            # than the rule above: on creeping frames (ratio 0.5-1) it would ask for more steps
+            if remaining_tolerance > 0.0 and max(ratio, RATIO_FLOOR) * decrease <= remaining_tolerance * energy:
                 break
     return energy, iterations, accepted, cg_total, count, lam, ratio_seen
