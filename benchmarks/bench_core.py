@@ -215,10 +215,11 @@ def same_start_gaps(graph, skeletons, designs, subset=None, count=64):
     return {n: np.array(v) for n, v in gaps.items()}, {n: np.array(v) for n, v in steps.items()}
 
 
-def bench_solve_agreement(cases=((256, 1), (256, 2), (512, 1), (512, 2), (256, 1, "right arm")), skip=5):
+def bench_solve_agreement(cases=((256, 2), (256, 1, "right arm")), skip=5):
     """Energy agreement with the same start (`same_start_gaps`): the default, block Jacobi, the session-11
     default's stop rule and the exact solve with its default stop, against `EXACT_TIGHT`; median, p95 and
-    max of the relative gap over the frames after the first `skip`."""
+    max of the relative gap over the frames after the first `skip`. Two cases by default: the tight
+    reference costs up to 30 factorisations a frame (these two took 7 min at load 2.5; 512 nodes ~2× each)."""
     frames, _ = walk_frames()
     body = capsule_body(frames[0], radius=0.06)
     designs = {"pcg_adaptive": DESIGNS["pcg_adaptive"], "pcg_adaptive_s11": DESIGNS["pcg_adaptive_s11"],
