@@ -17,6 +17,7 @@ from ..jit import njit
 from .gradient import energy_gradient
 from .coarse_space import coarse_factor
 from .krylov import BLOCK_JACOBI, COORDINATE, local_blocks, node_factors, pcg, stretch_curvature
+from .live_stop import should_stop
 
 
 # The coarse space serves only a frame's first two linear solves, each with its factor made afresh. It carries
@@ -44,10 +45,13 @@ def gauss_newton_pcg(x, g, edges, con_nodes, con_weights, con_points, targets, a
                      w_rot, w_reg, w_con, w_rig, kind, fac, kp, ki, kx, k_blocks, k_diag,
                      max_iterations, relative_tolerance, cg_iterations, cg_tolerance, lam, max_damping,
                      energy_floor, rot, rig, node_fac, energies, backtracks, curvature, coarse, kc,
-                     contraction, remaining_tolerance):
+                     contraction, remaining_tolerance, stop, stop_after):
     """Minimise E from x (N, 12, updated in place). Returns (E, iterations, accepted, CG iterations,
     number of entries written to `energies` (E after each accepted step, from the initial E), λ, the last
-    ratio of two successive accepted steps' decreases seen in this frame (-1: none)).
+    ratio of two successive accepted steps' decreases seen in this frame (-1: none), whether `stop` ended it).
+    `stop` (uint8, shape (1,), or (0,): none) and `stop_after`: a live solve's `live_stop.Yield`; the frame
+    ends after an accepted step, not converged, once stop[0] is set and the thread's CPU clock is past
+    `stop_after` (E lowered; the next frame goes on from this pose).
     `coarse` = (factor (12m, 12m), region, offsets) and kc: the coarse space of `coarse_space.py` (a factor of
     shape (0, 0): none). It serves the frame's first `COARSE_STEPS` linear solves only, factored afresh for
     each step (the pose moved: its node blocks changed) and for a retry only when λ + 0.01 has moved 4×;
@@ -72,6 +76,7 @@ def gauss_newton_pcg(x, g, edges, con_nodes, con_weights, con_points, targets, a
     trial = np.empty(m)
     coarse_lam = -1.0  # the damping the coarse factor was made with (-1: none yet, refactor)
     no_coarse = (np.zeros((0, 0)), coarse[1], coarse[2])
+    stopped = False
     while iterations < max_iterations and energy > energy_floor:
         coarse_lam = -1.0  # a new pose: the factor's node blocks are stale
         for j in range(n):
@@ -183,4 +188,7 @@ def gauss_newton_pcg(x, g, edges, con_nodes, con_weights, con_points, targets, a
             # than the rule above: on creeping frames (ratio 0.5-1) it would ask for more steps
             if remaining_tolerance > 0.0 and max(ratio, RATIO_FLOOR) * decrease <= remaining_tolerance * energy:
                 break
-    return energy, iterations, accepted, cg_total, count, lam, ratio_seen
+        if iterations < max_iterations and should_stop(stop, stop_after):
+            stopped = True
+            break
+    return energy, iterations, accepted, cg_total, count, lam, ratio_seen, stopped

@@ -25,6 +25,7 @@ from .coordinate_split import CoordinateSplit
 from .factor import NotPositiveDefinite, ReusedCholesky
 from .gradient import energy_gradient
 from .krylov import ADDITIVE, BLOCK_JACOBI, COORDINATE, HALF_CYCLE, TWO_LEVEL, V_CYCLE
+from .live_stop import NO_FLAG, Yield
 from .local_global import LocalGlobalSettings
 from .local_global import solve_frame as local_global_frame
 from .newton_krylov import gauss_newton_pcg
@@ -197,7 +198,8 @@ class GaussNewton:
         frame is waiting: the frame then ends there (E lowered or, after a rejected step, the damping
         raised; not converged) and the next frames go on with exact steps until the jump's budget is spent
         or it converges, so a live solve never holds one frame for the whole budget (a 253-node jump: 20
-        factorisations, ~100 ms).
+        factorisations, ~100 ms). A `live_stop.Yield` also ends a PCG frame after an accepted step (read
+        inside the numba loop); the next frame goes on from its pose. Either way `SolveReport.stopped`.
         """
         e0 = self.energy(x0, targets, active)
         if guess is not None:
@@ -219,7 +221,7 @@ class GaussNewton:
             report = self._solve_exact(x0, targets, active)
         elif jump and self.settings.jump_steps == "pcg":
             lam = self._lam  # the jump's damping is not the scale of the frames after it
-            report = self._solve_pcg(x0, targets, active, 2 * self.settings.max_iterations)
+            report = self._solve_pcg(x0, targets, active, 2 * self.settings.max_iterations, stop)
             self._lam = lam
         elif self._jump_left or jump:
             # far from the warm start (a skeleton teleporting): twice the steps, else the frame can end
@@ -230,7 +232,7 @@ class GaussNewton:
         elif self.settings.method == "local_global":
             report = self._solve_local_global(x0, targets, active)
         else:
-            report = self._solve_pcg(x0, targets, active)
+            report = self._solve_pcg(x0, targets, active, stop=stop)
         self._last_energy = report.energy
         return report
 
@@ -325,8 +327,9 @@ class GaussNewton:
                            stopped=stopped and iterations < max_iterations)
 
     def _solve_pcg(self, x0: np.ndarray, targets: np.ndarray, active: np.ndarray,
-                   max_iterations: int | None = None) -> SolveReport:
-        """The same damped Gauss-Newton loop, each step from a few preconditioned CG iterations."""
+                   max_iterations: int | None = None, stop=None) -> SolveReport:
+        """The same damped Gauss-Newton loop, each step from a few preconditioned CG iterations. Only a
+        `Yield` stop can end it early: the loop is one numba call."""
         s = self.settings
         max_iterations = max_iterations or s.max_iterations
         sysm = self.system
@@ -338,7 +341,8 @@ class GaussNewton:
         energies = np.empty(max_iterations + 1)
         lam = self._lam if self._lam is not None else s.initial_damping
         kind, coarse = self._preconditioner()
-        energy, iterations, accepted, cg_total, count, lam, ratio = gauss_newton_pcg(
+        flag, after = (stop.flag, stop.after) if isinstance(stop, Yield) else (NO_FLAG, 0.0)
+        energy, iterations, accepted, cg_total, count, lam, ratio, stopped = gauss_newton_pcg(
             x, sysm.g, sysm.edges, cons.nodes, cons.weights, cons.points,
             np.ascontiguousarray(targets, dtype=np.float64), np.ascontiguousarray(active, dtype=np.float64),
             sysm.bridges, w.rot, w.reg, w.con, w.rig, kind, fac, k[0], k[1], k[2],
@@ -349,7 +353,7 @@ class GaussNewton:
             # (test_coarse_space's live Spot case) took a different path into the loop-around's hard frames
             # and the coarse space's worst frame needed 47 CG iterations against 41 without it
             self._contraction, s.remaining_tolerance if s.stop == "remaining" and kind == HALF_CYCLE and not coarse
-            else 0.0)
+            else 0.0, flag, after)
         self._lam = min(max(lam, s.initial_damping), 1e3)
         if ratio > 0.0:
             self._contraction = 0.5 * (self._contraction + ratio)
@@ -357,7 +361,7 @@ class GaussNewton:
             self._follow(cg_total / iterations)
         return SolveReport(x=x, energy=energy, iterations=iterations, accepted=accepted,
                            energies=tuple(energies[:count]), factorisations=self.split.factorisations - before,
-                           cg_iterations=cg_total)
+                           cg_iterations=cg_total, stopped=stopped)
 
     # "adaptive": above this many CG iterations per step (over the last frames) the two-level replaces the
     # half cycle; above COARSE_ON the coarse space joins in, and leaves below COARSE_OFF
