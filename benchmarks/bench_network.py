@@ -317,7 +317,9 @@ async def load(base: str, token: str | None, frames, pids: dict, captures=CAPTUR
         # (waiting for the scene, the solve) and published → viewer (the fan-out, and this generator's own delay)
         "latency_split_ms": {"capture_to_published": median_p99(solving), "published_to_viewer": median_p99(delivery)},
         "solve_hz": round(len(solved) / seconds, 1), "solve_ms_median": state["solve_ms"],
-        "solve_cpu_ms_median": state.get("solve_cpu_ms"),
+        "solve_cpu_ms_median": state.get("solve_cpu_ms"), "solve_cpu_ms_p99": state.get("solve_cpu_ms_p99"),
+        # solves that yielded to a newer frame after a Gauss-Newton step (the scene's last 600 solves: p99)
+        "solves_stopped": state.get("solves_stopped"),
         "frames_sent": sent,
         "dropped_by_policy": {"skeletons_merged_at_scene": merged, "skeletons_late": late,
                               "transforms_skipped_for_slow_viewers": sum(s["transforms_skipped"] for s in view_stats)},
@@ -393,7 +395,8 @@ def run_serving_512(frames) -> dict:
     finally:
         proc.terminate()
         proc.wait(10)
-    keep = ("nodes", "solve_hz", "solve_ms_median", "solve_cpu_ms_median", "cpu_percent", "latency_median_ms", "latency_p99_ms", "http_median_ms",
+    keep = ("nodes", "solve_hz", "solve_ms_median", "solve_cpu_ms_median", "solve_cpu_ms_p99", "solves_stopped",
+            "cpu_percent", "latency_median_ms", "latency_p99_ms", "http_median_ms",
             "http_worst_ms")
     return {"bench": "network_serving_512", "captures": 2, "viewers": 20, **{k: result[k] for k in keep}}
 

@@ -120,7 +120,8 @@ class Scene:
         self.recording: TakeLog | None = None
         self.last_error = ""
         self.solve_ms: list[float] = []  # recent solve round trips (wall), for the state line
-        self.solve_cpu_ms: list[float] = []  # the same solves' CPU time in the solver
+        self.solve_cpu_ms: list[float] = []  # the last 600 solves' CPU time in the solver (median, p99)
+        self.stopped = 0  # solves that yielded to a newer frame after a step (solve_worker.yielding)
         self.joint_map = None  # a JointMap: the n-th user to possess drives with the joints sources[n] keeps
         self._lock = asyncio.Lock()  # one attach/solve at a time; both run in a worker thread
         self._dirty = asyncio.Event()
@@ -218,7 +219,7 @@ class Scene:
         user.arrived = arrived
         if user.bind is not None:
             self._dirty.set()
-            self.solver.newer_frame()  # a running jump solve yields to this frame
+            self.solver.newer_frame()  # a running solve yields to this frame (solve_worker.yielding)
 
     async def possess(self, client: str, subset=None) -> None:
         """Bind the user's current pose (SPEC §3.2); raises AttachError when nothing is near the mesh."""
@@ -381,7 +382,8 @@ class Scene:
                 self._rebuild_rig_later()
                 raise
             self.solve_ms = (self.solve_ms + [1000 * (time.perf_counter() - start)])[-60:]
-            self.solve_cpu_ms = (self.solve_cpu_ms + [self.solver.cpu_ms])[-60:]
+            self.solve_cpu_ms = (self.solve_cpu_ms + [self.solver.cpu_ms])[-600:]
+            self.stopped += bool(getattr(self.solver, "stopped", False))
             self.pose = pose
             if self.recording is not None:  # on disk before any viewer sees the frame
                 self.recording.append(self.seq + 1, now_ms(), pose, {u.client: u.latest for u in users})
@@ -418,6 +420,8 @@ class Scene:
                                                              "sources": len(self.joint_map.sources)},
             "solve_ms": float(np.median(self.solve_ms)) if self.solve_ms else None,
             "solve_cpu_ms": float(np.median(self.solve_cpu_ms)) if self.solve_cpu_ms else None,
+            "solve_cpu_ms_p99": float(np.percentile(self.solve_cpu_ms, 99)) if self.solve_cpu_ms else None,
+            "solves_stopped": self.stopped,
             "error": self.last_error,
             # frames in: all that reached the scene; merged: superseded before a solve used them (in the
             # subscription's slot or as a user's newest frame); late: older than the user's newest

@@ -18,6 +18,7 @@ import time
 
 import numpy as np
 
+from ..deform.live_stop import Yield
 from ..deform.pose import GraphPose
 from ..deform.solver import SolverSettings
 from ..errors import KinetreError
@@ -34,22 +35,23 @@ class InlineSolver:
     def __init__(self):
         self.rig = None
         self.cpu_ms = 0.0  # CPU time of the last solve
-        self._newer = False  # a frame newer than the one being solved has arrived
+        self.stopped = False  # the last solve yielded to a newer frame (its pose is not converged)
+        self._newer = np.zeros(1, np.uint8)  # set: a frame newer than the one being solved has arrived
 
     async def attach(self, graph, skeletons, settings: SolverSettings = SolverSettings()) -> list[np.ndarray]:
         self.rig = await asyncio.to_thread(attach, graph, skeletons, settings=settings)
         return self.rig.attached_joints
 
     def newer_frame(self) -> None:
-        """A newer frame waits: a long jump solve yields to it (see `yielding`)."""
-        self._newer = True
+        """A newer frame waits: a long solve yields to it (see `yielding`)."""
+        self._newer[0] = 1
 
     async def solve(self, skeletons) -> GraphPose:
-        self._newer = False
+        self._newer[0] = 0
 
         def timed():
             start = time.thread_time()
-            pose = self.rig.solve(skeletons, stop=yielding(lambda: self._newer))
+            pose, self.stopped = solve_yielding(self.rig, skeletons, self._newer)
             self.cpu_ms = 1000 * (time.thread_time() - start)
             return pose
         return await asyncio.to_thread(timed)
@@ -64,13 +66,20 @@ class InlineSolver:
 YIELD_AFTER_S = 0.005  # CPU seconds a frame's solve may take before it yields to a newer frame
 
 
-def yielding(newer) -> callable:
-    """Rig.solve's `stop` for a live solve: a newer frame waits (`newer()`) and this one has had its share
-    of CPU. Most frames (~4 ms at 253 nodes) never yield; a jump frame taking exact steps
-    (`jump_steps="exact"`: up to 20 factorisations, ~100 ms) goes on over the next frames instead of holding
-    every viewer's picture that long (the default PCG jump steps are not cut: 5-21 ms)."""
-    start = time.thread_time()
-    return lambda: bool(newer()) and time.thread_time() - start > YIELD_AFTER_S
+def yielding(newer: np.ndarray) -> Yield:
+    """Rig.solve's `stop` for a live solve: a newer frame waits (`newer[0]` set, a uint8 view of the byte the
+    scene sets) and this one has had its share of CPU. The frame then ends after its current Gauss-Newton
+    step (PCG, read inside the numba loop; or an exact jump step) and publishes the pose reached, E
+    lowered; the next frame goes on from it. Most frames (~4 ms at 253 nodes) never yield; the long ones
+    (10 creeping steps, a jump) go on over the next frames instead of making the newest frame wait."""
+    return Yield.after_share(newer, YIELD_AFTER_S)
+
+
+def solve_yielding(rig, skeletons, newer: np.ndarray) -> tuple[GraphPose, bool]:
+    """`rig.solve` with `yielding(newer)`; also whether the solve yielded."""
+    rig.last_report = None
+    pose = rig.solve(skeletons, stop=yielding(newer))
+    return pose, rig.last_report is not None and rig.last_report.stopped
 
 
 def freeze_heap() -> None:
@@ -107,9 +116,10 @@ def warm_up(frames: int = 3) -> None:
 def _serve(conn, newer) -> None:
     """The child: one rig, requests answered in order until the pipe closes.
 
-    Each reply is (status, value, CPU seconds this request took here): the scene reports the solve's own
-    CPU cost beside its round trip, which also counts waiting for a core on a busy machine. `newer` (a
-    shared byte) is set by the scene when a newer frame arrives during a solve (Rig.solve's `stop`).
+    Each reply is (status, value, CPU seconds this request took here, whether a solve yielded to a newer
+    frame): the scene reports the solve's own CPU cost beside its round trip, which also counts waiting for
+    a core on a busy machine. `newer` (a shared byte) is set by the scene when a newer frame arrives during
+    a solve (Rig.solve's `stop`, read as a uint8 view inside the solver's numba loop).
     """
     os.environ.setdefault("OMP_NUM_THREADS", "1")
     try:
@@ -117,6 +127,7 @@ def _serve(conn, newer) -> None:
     except Exception:  # a warm-up that fails only costs the first real solve its compile time
         pass
     freeze_heap()
+    flag = np.frombuffer(newer, dtype=np.uint8)  # the shared byte, as the solver's kernel reads it
     rig = None
     while True:
         try:
@@ -124,20 +135,22 @@ def _serve(conn, newer) -> None:
         except (EOFError, OSError):
             return
         start = time.thread_time()
+        stopped = False
         try:
             if request[0] == "attach":
                 _, graph, skeletons, settings = request
                 rig = attach(graph, skeletons, settings=settings)
                 reply = ("ok", rig.attached_joints)
             elif request[0] == "solve":
-                reply = ("ok", rig.solve(request[1], stop=yielding(lambda: newer.value)))
+                pose, stopped = solve_yielding(rig, request[1], flag)
+                reply = ("ok", pose)
             else:  # "ping"
                 reply = ("ok", os.getpid())
         except KinetreError as exc:
             reply = ("error", exc)
         except Exception as exc:  # a bug in a solve is reported to the scene, the process lives on
             reply = ("error", KinetreError(f"solve failed: {type(exc).__name__}: {exc}"))
-        conn.send((*reply, time.thread_time() - start))
+        conn.send((*reply, time.thread_time() - start, stopped))
 
 
 class SolveWorker:
@@ -150,6 +163,7 @@ class SolveWorker:
         self._lock = asyncio.Lock()
         self.restarts = 0  # processes lost and replaced
         self.cpu_ms = 0.0  # CPU time the child spent on the last request
+        self.stopped = False  # the last solve yielded to a newer frame
 
     @property
     def pid(self) -> int | None:
@@ -173,12 +187,12 @@ class SolveWorker:
             try:
                 self._conn.send(request)
                 await self._readable()
-                status, value, cpu = self._conn.recv()
+                status, value, cpu, stopped = self._conn.recv()
             except (EOFError, OSError, BrokenPipeError):
                 self._proc = None
                 self.restarts += 1  # the next call starts a new process
                 raise SolverLost("the solve process stopped; possess again") from None
-        self.cpu_ms = 1000 * cpu
+        self.cpu_ms, self.stopped = 1000 * cpu, stopped
         if status == "error":
             raise value
         return value
@@ -204,7 +218,7 @@ class SolveWorker:
         return await self._call("attach", graph, skeletons, settings)
 
     def newer_frame(self) -> None:
-        """A newer frame waits: a long jump solve yields to it (see `yielding`)."""
+        """A newer frame waits: a long solve yields to it (see `yielding`)."""
         if self._newer is not None:
             self._newer.value = 1
 
