@@ -115,14 +115,10 @@ class CoordinateSplit:
         blocks) for this tracked set."""
         return self._for_active(active)[:3]
 
-    def coarse(self, active: np.ndarray) -> np.ndarray:
-        """P_cᵀ K P_c (4m, 4m), the coarse space's part of K (`coarse_space.py`), for this tracked set;
-        (0, 0) without a coarse space."""
-        return self._for_active(active)[3]
-
     def frame_data(self, active: np.ndarray):
         """Everything a PCG frame needs for this tracked set, from one cache lookup: `for_active`'s three,
-        `coarse`'s P_cᵀ K P_c, and K's diagonal in the coordinate layout (4N,)."""
+        P_cᵀ K P_c (4m, 4m; (0, 0) without a coarse space: `coarse_space.py`), and K's diagonal in the
+        coordinate layout (4N,)."""
         return self._for_active(active)
 
     def _for_active(self, active: np.ndarray):

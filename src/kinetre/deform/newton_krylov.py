@@ -74,11 +74,10 @@ def gauss_newton_pcg(x, g, edges, con_nodes, con_weights, con_points, targets, a
     previous = -1.0  # the decrease of the accepted step before
     ratio_seen = -1.0
     trial = np.empty(m)
-    coarse_lam = -1.0  # the damping the coarse factor was made with (-1: none yet, refactor)
     no_coarse = (np.zeros((0, 0)), coarse[1], coarse[2])
     stopped = False
     while iterations < max_iterations and energy > energy_floor:
-        coarse_lam = -1.0  # a new pose: the factor's node blocks are stale
+        coarse_lam = -1.0  # the damping the coarse factor was made with; -1: none (a new pose: refactor)
         for j in range(n):
             for a in range(3):
                 for b in range(3):

@@ -55,7 +55,8 @@ from .fanout import Framing, RawSockets, raw_socket
 from .natsbus import NatsChannels
 from .placement import standing_mesh
 from .protocol import ProtocolError, parse_message, parse_skeleton, with_client
-from .scene import SKELETONS, STATE, TRANSFORMS, Scene, check_subset, now_ms, resample
+from .scene import (SKELETON_PREFIX, SKELETONS, STATE, TRANSFORMS, Scene, check_subset, client_subject, now_ms,
+                    resample, skeleton_subject)
 from .solve_worker import SolveWorker, freeze_heap
 from .uploads import read_upload
 
@@ -151,7 +152,7 @@ class Studio:
                 seq, t, skeleton = parse_skeleton(msg)
                 stats.received += 1
                 stats.last_seq = seq
-                self.hub.publish(Frame(f"kinetre.skeleton.{client}", seq, t, with_client(text, client),
+                self.hub.publish(Frame(skeleton_subject(client), seq, t, with_client(text, client),
                                        (seq, t, skeleton)))
             elif kind == "possess":
                 if self.player is not None and client != SAMPLE_CLIENT:
@@ -206,7 +207,7 @@ class Studio:
         return json.dumps(mesh_payload(scene.mesh, scene.graph, scene.mesh_id, scene.name)).encode()
 
     def reply(self, client: str, message: dict) -> None:
-        self.hub.publish(Frame(f"kinetre.client.{client}", 0, now_ms(), json.dumps(message).encode()))
+        self.hub.publish(Frame(client_subject(client), 0, now_ms(), json.dumps(message).encode()))
 
     # --- the sample motion -----------------------------------------------------------------------------
     async def start_sample(self) -> None:
@@ -367,9 +368,9 @@ def create_app(mesh_path: str | None = None, nodes: int = NODES, sample_motion: 
         await ws.accept()
         client = f"{prefix}c{next(clients)}"
         studio.stats[client] = stats = ClientStats()
-        sub = stats.sub = hub.subscribe(urgent=(TRANSFORMS, STATE, f"kinetre.client.{client}"))
+        sub = stats.sub = hub.subscribe(urgent=(TRANSFORMS, STATE, client_subject(client)))
         await ws.send_text(json.dumps({"type": "welcome", "client": client,
-                                       "channel": f"kinetre.skeleton.{client}"}))
+                                       "channel": skeleton_subject(client)}))
         await ws.send_text(json.dumps(studio.scene.state()))
         block = studio.scene.transforms_block()  # None while a remote scene has not been heard yet
         if block is not None:
@@ -406,7 +407,7 @@ def create_app(mesh_path: str | None = None, nodes: int = NODES, sample_motion: 
                 frame = await sub.next()
                 if frame is None:
                     return
-                skeleton = frame.subject.startswith("kinetre.skeleton.")
+                skeleton = frame.subject.startswith(SKELETON_PREFIX)
                 if skeleton and (not stats.skeletons or frame.subject.endswith("." + client)):
                     continue  # other users' skeletons only for viewers that asked; a page draws its own
                 if frame.subject == TRANSFORMS:

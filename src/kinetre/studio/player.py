@@ -14,6 +14,7 @@ import numpy as np
 from ..skeleton.models import Skeleton
 from .channels import Channels, Frame
 from .protocol import skeleton_json
+from .scene import skeleton_subject
 
 
 def in_place(frames: list[Skeleton], root: int = 0) -> list[Skeleton]:
@@ -51,7 +52,7 @@ class MotionPlayer:
 
     @property
     def subject(self) -> str:
-        return f"kinetre.skeleton.{self.client}"
+        return skeleton_subject(self.client)
 
     def publish(self, index: int, t: float) -> None:
         frame = self.frames[index % len(self.frames)]

@@ -25,7 +25,7 @@ from .channels import Frame
 from .natsbus import NatsChannels
 from .placement import Placement
 from .protocol import ProtocolError, parse_message
-from .scene import STATE, TRANSFORMS, Scene, now_ms
+from .scene import STATE, TRANSFORMS, Scene, now_ms, skeleton_subject
 from .solve_worker import SolveWorker, freeze_heap
 
 log = logging.getLogger("kinetre.network")
@@ -120,7 +120,7 @@ class SceneMirror:
                     continue  # our own announcement, delivered locally
                 self.latest, self.heard = state, time.monotonic()
                 # only the possessing users' frames are waited for (by the solve): the others' may be batched
-                self.hub.batched = frozenset(f"kinetre.skeleton.{u['client']}" for u in state.get("users", ())
+                self.hub.batched = frozenset(skeleton_subject(u['client']) for u in state.get("users", ())
                                              if not u.get("possessing"))
                 if self.lost:
                     self.lost = False

@@ -32,11 +32,22 @@ from .takelog import TakeLog, read_take_log
 
 log = logging.getLogger("kinetre.studio")
 
-SKELETONS = "kinetre.skeleton.*"
+SKELETON_PREFIX = "kinetre.skeleton."
+SKELETONS = SKELETON_PREFIX + "*"
 TRANSFORMS = "kinetre.transforms"
 STATE = "kinetre.state"
 GATHER_S = 0.010  # longest wait for another possessing user's frame that is due (see Scene._gather)
 GATHER_SLACK_S = 0.005  # how late a user's frame may be (arrival jitter) and still be waited for
+
+
+def skeleton_subject(client: str) -> str:
+    """The subject a capture client's (or a player's) skeleton frames go on: one per user, under SKELETONS."""
+    return SKELETON_PREFIX + client
+
+
+def client_subject(client: str) -> str:
+    """The subject of replies meant for one client only (errors, acknowledgements)."""
+    return f"kinetre.client.{client}"
 
 
 def now_ms() -> float:
