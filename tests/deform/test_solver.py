@@ -232,7 +232,7 @@ def test_coordinate_solve_inverts_the_shifted_k(armadillo, backend):
     rng = np.random.default_rng(4)
     r = rng.standard_normal(12 * n)
     out, work = np.empty(12 * n), np.empty(12 * n)
-    krylov._coordinate_solve(*fac[:10], r, out, work)
+    krylov._coordinate_solve(fac, r, out, work)
     k_sigma = split._matrix(k[2] + split.shift_data).toarray()
     want = np.linalg.solve(k_sigma, r.reshape(-1, 3)).reshape(-1)
     assert np.abs(out - want).max() < 1e-9 * np.abs(want).max()

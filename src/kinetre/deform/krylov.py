@@ -8,7 +8,7 @@ blocks (E_rot, Eq. 3) and bridge blocks (E_rig's R_kᵀR_j − I, Eq. 7) are den
     H = (K ⊗ I₃) + blockdiag_j(B_rot,j) + Σ_bridges B_rig,e + λ diag(H).
 
 Preconditioners (see `_precondition`): the coordinate solve S = (K + σ I_R)⁻¹ per coordinate (one sparse
-factor for the rig, three right-hand sides), exact per-node 12×12 blocks B (block Jacobi), and their
+factor per tracked set in 4 × 4 node blocks, three right-hand sides), exact per-node 12×12 blocks B (block Jacobi), and their
 symmetric multiplicative combinations S · B · S (two-level: the factor carries the graph-wide coupling,
 the node blocks the rotation stiffness the shift σ only averages) and B · S · B (v-cycle: one pair of
 triangular solves per application instead of two, as many CG iterations at 256 nodes and two skeletons,
@@ -220,53 +220,92 @@ def _node_solve(factors, r, out):
 
 
 @njit(cache=True)
-def _row_minus(ptr, idx, val, k, work, s0, s1, s2):
-    """(s0, s1, s2) minus row k of a sparse triangle (CSR) times the (·, 3) vector `work`."""
-    for p in range(ptr[k], ptr[k + 1]):
-        c = 3 * idx[p]
-        w = val[p]
-        s0 -= w * work[c]
-        s1 -= w * work[c + 1]
-        s2 -= w * work[c + 2]
-    return s0, s1, s2
+def _coordinate_solve(fac, r, out, work):
+    """out = (K_σ ⊗ I₃)⁻¹ r with the block Cholesky factor of `CoordinateSplit._factor`: L w = r block row by
+    block row (in elimination order, w in `work`), then Lᵀ v = w from the last, scattering along L's rows (one
+    triangle read twice rather than two once: it stays in cache). Node k's 12 entries, unknown b's coordinate a
+    as s_ba, are written out as scalars: numba keeps scalars in registers but not a small array (a loop over a
+    (4, 3) array: 1.6× the time)."""
+    ptr, col, low, inv, node, _ = fac
+    for k in range(ptr.shape[0] - 1):
+        o = 12 * node[k]
+        s00, s01, s02 = r[o], r[o + 1], r[o + 2]
+        s10, s11, s12 = r[o + 3], r[o + 4], r[o + 5]
+        s20, s21, s22 = r[o + 6], r[o + 7], r[o + 8]
+        s30, s31, s32 = r[o + 9], r[o + 10], r[o + 11]
+        for q in range(ptr[k], ptr[k + 1]):
+            j = 12 * col[q]
+            l = low[q]
+            w00, w01, w02 = work[j], work[j + 1], work[j + 2]
+            w10, w11, w12 = work[j + 3], work[j + 4], work[j + 5]
+            w20, w21, w22 = work[j + 6], work[j + 7], work[j + 8]
+            w30, w31, w32 = work[j + 9], work[j + 10], work[j + 11]
+            s00 -= l[0] * w00 + l[1] * w10 + l[2] * w20 + l[3] * w30
+            s01 -= l[0] * w01 + l[1] * w11 + l[2] * w21 + l[3] * w31
+            s02 -= l[0] * w02 + l[1] * w12 + l[2] * w22 + l[3] * w32
+            s10 -= l[4] * w00 + l[5] * w10 + l[6] * w20 + l[7] * w30
+            s11 -= l[4] * w01 + l[5] * w11 + l[6] * w21 + l[7] * w31
+            s12 -= l[4] * w02 + l[5] * w12 + l[6] * w22 + l[7] * w32
+            s20 -= l[8] * w00 + l[9] * w10 + l[10] * w20 + l[11] * w30
+            s21 -= l[8] * w01 + l[9] * w11 + l[10] * w21 + l[11] * w31
+            s22 -= l[8] * w02 + l[9] * w12 + l[10] * w22 + l[11] * w32
+            s30 -= l[12] * w00 + l[13] * w10 + l[14] * w20 + l[15] * w30
+            s31 -= l[12] * w01 + l[13] * w11 + l[14] * w21 + l[15] * w31
+            s32 -= l[12] * w02 + l[13] * w12 + l[14] * w22 + l[15] * w32
+        d = inv[k]
+        o = 12 * k
+        work[o] = d[0] * s00
+        work[o + 1] = d[0] * s01
+        work[o + 2] = d[0] * s02
+        work[o + 3] = d[4] * s00 + d[5] * s10
+        work[o + 4] = d[4] * s01 + d[5] * s11
+        work[o + 5] = d[4] * s02 + d[5] * s12
+        work[o + 6] = d[8] * s00 + d[9] * s10 + d[10] * s20
+        work[o + 7] = d[8] * s01 + d[9] * s11 + d[10] * s21
+        work[o + 8] = d[8] * s02 + d[9] * s12 + d[10] * s22
+        work[o + 9] = d[12] * s00 + d[13] * s10 + d[14] * s20 + d[15] * s30
+        work[o + 10] = d[12] * s01 + d[13] * s11 + d[14] * s21 + d[15] * s31
+        work[o + 11] = d[12] * s02 + d[13] * s12 + d[14] * s22 + d[15] * s32
+    for k in range(ptr.shape[0] - 2, -1, -1):
+        d = inv[k]
+        o = 12 * k
+        w00, w01, w02 = work[o], work[o + 1], work[o + 2]
+        w10, w11, w12 = work[o + 3], work[o + 4], work[o + 5]
+        w20, w21, w22 = work[o + 6], work[o + 7], work[o + 8]
+        w30, w31, w32 = work[o + 9], work[o + 10], work[o + 11]
+        s00 = d[0] * w00 + d[4] * w10 + d[8] * w20 + d[12] * w30
+        s01 = d[0] * w01 + d[4] * w11 + d[8] * w21 + d[12] * w31
+        s02 = d[0] * w02 + d[4] * w12 + d[8] * w22 + d[12] * w32
+        s10 = d[5] * w10 + d[9] * w20 + d[13] * w30
+        s11 = d[5] * w11 + d[9] * w21 + d[13] * w31
+        s12 = d[5] * w12 + d[9] * w22 + d[13] * w32
+        s20 = d[10] * w20 + d[14] * w30
+        s21 = d[10] * w21 + d[14] * w31
+        s22 = d[10] * w22 + d[14] * w32
+        s30 = d[15] * w30
+        s31 = d[15] * w31
+        s32 = d[15] * w32
+        for q in range(ptr[k], ptr[k + 1]):
+            j = 12 * col[q]
+            l = low[q]
+            work[j] -= l[0] * s00 + l[4] * s10 + l[8] * s20 + l[12] * s30
+            work[j + 1] -= l[0] * s01 + l[4] * s11 + l[8] * s21 + l[12] * s31
+            work[j + 2] -= l[0] * s02 + l[4] * s12 + l[8] * s22 + l[12] * s32
+            work[j + 3] -= l[1] * s00 + l[5] * s10 + l[9] * s20 + l[13] * s30
+            work[j + 4] -= l[1] * s01 + l[5] * s11 + l[9] * s21 + l[13] * s31
+            work[j + 5] -= l[1] * s02 + l[5] * s12 + l[9] * s22 + l[13] * s32
+            work[j + 6] -= l[2] * s00 + l[6] * s10 + l[10] * s20 + l[14] * s30
+            work[j + 7] -= l[2] * s01 + l[6] * s11 + l[10] * s21 + l[14] * s31
+            work[j + 8] -= l[2] * s02 + l[6] * s12 + l[10] * s22 + l[14] * s32
+            work[j + 9] -= l[3] * s00 + l[7] * s10 + l[11] * s20 + l[15] * s30
+            work[j + 10] -= l[3] * s01 + l[7] * s11 + l[11] * s21 + l[15] * s31
+            work[j + 11] -= l[3] * s02 + l[7] * s12 + l[11] * s22 + l[15] * s32
+        o = 12 * node[k]
+        out[o], out[o + 1], out[o + 2] = s00, s01, s02
+        out[o + 3], out[o + 4], out[o + 5] = s10, s11, s12
+        out[o + 6], out[o + 7], out[o + 8] = s20, s21, s22
+        out[o + 9], out[o + 10], out[o + 11] = s30, s31, s32
 
-
-@njit(cache=True)
-def _coordinate_solve(lp, li, lx, ld, up, ui, ux, ud, row_perm, col_perm, r, out, work):
-    """out = (K_σ ⊗ I₃)⁻¹ r with K_σ[row_perm][:, col_perm] = L U (strict triangles by rows, inverse
-    diagonals apart: see `CoordinateSplit._factor`). An empty U means U = Lᵀ (a Cholesky factor): the
-    backward pass then scatters along L's rows, so one triangle is read twice instead of two once, and at
-    256 nodes it stays in the L2 cache (134 against 160 µs)."""
-    n4 = lp.shape[0] - 1
-    for k in range(n4):  # L w = r[row_perm], row by row
-        i = 3 * row_perm[k]
-        s0, s1, s2 = _row_minus(lp, li, lx, k, work, r[i], r[i + 1], r[i + 2])
-        d = ld[k]
-        work[3 * k] = s0 * d
-        work[3 * k + 1] = s1 * d
-        work[3 * k + 2] = s2 * d
-    cholesky = up.shape[0] == 0
-    for k in range(n4 - 1, -1, -1):  # U v = w, from the last row
-        if cholesky:  # v_k is final once the rows below have scattered into w_k
-            d = ld[k]
-            s0, s1, s2 = work[3 * k] * d, work[3 * k + 1] * d, work[3 * k + 2] * d
-            for p in range(lp[k], lp[k + 1]):
-                c = 3 * li[p]
-                w = lx[p]
-                work[c] -= w * s0
-                work[c + 1] -= w * s1
-                work[c + 2] -= w * s2
-        else:
-            s0, s1, s2 = _row_minus(up, ui, ux, k, work, work[3 * k], work[3 * k + 1], work[3 * k + 2])
-            d = ud[k]
-            s0, s1, s2 = s0 * d, s1 * d, s2 * d
-            work[3 * k] = s0
-            work[3 * k + 1] = s1
-            work[3 * k + 2] = s2
-        i = 3 * col_perm[k]
-        out[i] = s0
-        out[i + 1] = s1
-        out[i + 2] = s2
 
 
 @njit(cache=True)
@@ -277,7 +316,7 @@ def _precondition(kind, fac, kp, ki, kx, rot, rig, bridges, damp, node_fac, coar
     With a coarse space (`coarse` = (factor, region, offsets) of `coarse_space.py`, factor (0, 0): none) the
     half cycle and the two-level start with the coarse correction z = C r and go on from r − H z; the
     two-level also ends with one (C, two-level, C: symmetric)."""
-    lp, li, lx, ld, up, ui, ux, ud, row_perm, col_perm, shift = fac
+    shift = fac[5]
     gfac, region, offsets = coarse
     if kind == BLOCK_JACOBI:  # with a coarse space additively: z = B r + C r (symmetric)
         _node_solve(node_fac, r, z)
@@ -304,7 +343,7 @@ def _precondition(kind, fac, kp, ki, kx, rot, rig, bridges, damp, node_fac, coar
         _hessian_times(kp, ki, kx, rot, rig, bridges, damp, shift, z, t1)
         for i in range(r.shape[0]):
             t1[i] = r[i] - t1[i]
-        _coordinate_solve(lp, li, lx, ld, up, ui, ux, ud, row_perm, col_perm, t1, t2, work)
+        _coordinate_solve(fac, t1, t2, work)
         _after_coordinate_solve(rot, rig, bridges, damp, shift, z, t1, t2)
         _node_solve(node_fac, t1, t2)
         for i in range(r.shape[0]):
@@ -325,7 +364,7 @@ def _precondition(kind, fac, kp, ki, kx, rot, rig, bridges, damp, node_fac, coar
     if kind == TWO_LEVEL:
         _two_level(fac, kp, ki, kx, rot, rig, bridges, damp, node_fac, r, z, hz, t1, t2, work)
         return True
-    _coordinate_solve(lp, li, lx, ld, up, ui, ux, ud, row_perm, col_perm, r, z, work)
+    _coordinate_solve(fac, r, z, work)
     if kind == ADDITIVE:  # z = S r + B r: positive definite whatever the pose
         _node_solve(node_fac, r, t2)
         for i in range(r.shape[0]):
@@ -336,8 +375,8 @@ def _precondition(kind, fac, kp, ki, kx, rot, rig, bridges, damp, node_fac, coar
 @njit(cache=True)
 def _two_level(fac, kp, ki, kx, rot, rig, bridges, damp, node_fac, r, z, hz, t1, t2, work):
     """Symmetric multiplicative: z ← S r, z ← z + B (r − H z), z ← z + S (r − H z); hz ← H z."""
-    lp, li, lx, ld, up, ui, ux, ud, row_perm, col_perm, shift = fac
-    _coordinate_solve(lp, li, lx, ld, up, ui, ux, ud, row_perm, col_perm, r, t2, work)
+    shift = fac[5]
+    _coordinate_solve(fac, r, t2, work)
     z[:] = 0.0
     _after_coordinate_solve(rot, rig, bridges, damp, shift, z, t1, t2)
     _node_solve(node_fac, t1, t2)
@@ -351,10 +390,10 @@ def _two_level(fac, kp, ki, kx, rot, rig, bridges, damp, node_fac, r, z, hz, t1,
 def _coordinate_step(fac, rot, rig, bridges, damp, r, z, hz, t1, t2, work):
     """z ← z + S (r − H z) given hz = H z, which it keeps equal to H z without a pass over K:
     H (z + t2) = H z + K_σ t2 + (H − K_σ) t2 = hz + (r − hz) + local part."""
-    lp, li, lx, ld, up, ui, ux, ud, row_perm, col_perm, shift = fac
+    shift = fac[5]
     for i in range(r.shape[0]):
         t1[i] = r[i] - hz[i]
-    _coordinate_solve(lp, li, lx, ld, up, ui, ux, ud, row_perm, col_perm, t1, t2, work)
+    _coordinate_solve(fac, t1, t2, work)
     for i in range(r.shape[0]):
         z[i] += t2[i]
         hz[i] += t1[i]
@@ -410,7 +449,7 @@ def pcg(kind, fac, kp, ki, kx, rot, rig, bridges, damp, node_fac, coarse, b, max
             p[:] = z
             rz = r @ z
         if not known:
-            _hessian_times(kp, ki, kx, rot, rig, bridges, damp, fac[10], p, hp)
+            _hessian_times(kp, ki, kx, rot, rig, bridges, damp, fac[5], p, hp)
             known = True
         php = p @ hp
         if not (php > 0.0) or not (rz > 0.0):

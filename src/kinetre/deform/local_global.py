@@ -167,7 +167,7 @@ def local_global(x, g, edges, con_nodes, con_weights, con_points, targets, activ
     R = np.empty((n, 3, 3))
     dys = np.zeros((max(memory, 1), m))
     dfs = np.zeros((max(memory, 1), m))
-    lp, li, lx, ld, up, ui, ux, ud, row_perm, col_perm, shift = fac
+    shift = fac[5]
     top = 0.0
     for i in range(m):
         top = max(top, k_diag[i // 3])
@@ -187,7 +187,7 @@ def local_global(x, g, edges, con_nodes, con_weights, con_points, targets, activ
         if energy <= energy_floor:
             status = CONVERGED
             break
-        _coordinate_solve(lp, li, lx, ld, up, ui, ux, ud, row_perm, col_perm, grad, s, work)
+        _coordinate_solve(fac, grad, s, work)
         gain = grad @ s
         if not gain > gain_tolerance * energy:
             status = CONVERGED
