@@ -285,8 +285,8 @@ def bench_coordinate_solve(node_counts=(256, 512)):
         rig = kinetre.attach(kinetre.build_graph(body, nodes=nodes), frames[0])
         _, ok = rig.targets(frames[5])
         split = rig.solver.split
-        k, fac, _ = split.for_active(ok.astype(float))
-        dense = split._matrix(k[2] + split.shift_data).toarray()
+        _, fac, _ = split.for_active(ok.astype(float))
+        dense = split._matrix(split.k_data(ok.astype(float)) + split.shift_data).toarray()
         chol, _ = lapack.dpotrf(dense, lower=1)
         inverse = np.linalg.inv(dense)
         r = np.random.default_rng(0).standard_normal(3 * len(dense))

@@ -233,7 +233,7 @@ def test_coordinate_solve_inverts_the_shifted_k(armadillo, backend):
     r = rng.standard_normal(12 * n)
     out, work = np.empty(12 * n), np.empty(12 * n)
     krylov._coordinate_solve(fac, r, out, work)
-    k_sigma = split._matrix(k[2] + split.shift_data).toarray()
+    k_sigma = split._matrix(split.k_data(active) + split.shift_data).toarray()
     want = np.linalg.solve(k_sigma, r.reshape(-1, 3)).reshape(-1)
     assert np.abs(out - want).max() < 1e-9 * np.abs(want).max()
     rot, rig = np.zeros((n, 9, 9)), np.zeros((len(bridges), 18, 18))
@@ -317,13 +317,13 @@ def test_node_blocks_invert_the_diagonal_blocks_of_the_system(armadillo):
 
 
 def _offdiagonal_part(kp, ki, kx, rig, bridges, y, n):
-    """The node-to-other-node part of H y: K's entries between different nodes, bridges' cross blocks."""
+    """The node-to-other-node part of H y: K's blocks between different nodes, bridges' cross blocks."""
     out = np.zeros(12 * n)
-    y3 = y.reshape(-1, 3)
+    y4 = y.reshape(-1, 4, 3)  # per node, unknown b's coordinate a
     for i in range(len(kp) - 1):
         for p in range(kp[i], kp[i + 1]):
-            if ki[p] // 4 != i // 4:
-                out[3 * i:3 * i + 3] += kx[p] * y3[ki[p]]
+            if ki[p] != i:
+                out[12 * i:12 * i + 12] += (kx[p].reshape(4, 4) @ y4[ki[p]]).reshape(-1)
     for e, (j, k) in enumerate(bridges):
         out[12 * j:12 * j + 9] += rig[e, :9, 9:] @ y[12 * k:12 * k + 9]
         out[12 * k:12 * k + 9] += rig[e, 9:, :9] @ y[12 * j:12 * j + 9]

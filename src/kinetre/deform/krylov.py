@@ -104,22 +104,43 @@ def stretch_curvature(R, w_rot, rot_out):
 
 @njit(cache=True)
 def _hessian_times(kp, ki, kx, rot, rig, bridges, damp, shift, y, out):
-    """out = H y (see the module docstring), as (K_σ ⊗ I₃) y + `_local_times`."""
-    n4 = kp.shape[0] - 1
-    for i in range(n4):
-        s0 = 0.0
-        s1 = 0.0
-        s2 = 0.0
-        for p in range(kp[i], kp[i + 1]):
-            c = 3 * ki[p]
-            w = kx[p]
-            s0 += w * y[c]
-            s1 += w * y[c + 1]
-            s2 += w * y[c + 2]
-        out[3 * i] = s0 + shift[3 * i] * y[3 * i]
-        out[3 * i + 1] = s1 + shift[3 * i + 1] * y[3 * i + 1]
-        out[3 * i + 2] = s2 + shift[3 * i + 2] * y[3 * i + 2]
+    """out = H y (see the module docstring), as (K_σ ⊗ I₃) y + `_local_times`; K in 4 × 4 node blocks
+    (`CoordinateSplit`: block row pointers, block columns, blocks (B, 16) row-major)."""
+    for i in range(kp.shape[0] - 1):
+        o = 12 * i
+        s = _block_row(kp, ki, kx, i, y, (0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0))
+        for u in range(12):
+            out[o + u] = shift[o + u] * y[o + u] - s[u]
     _local_times(rot, rig, bridges, damp, shift, y, out)
+
+
+@njit(cache=True)
+def _block_row(ptr, col, blocks, k, y, s):
+    """s − Σ_q blocks[q] y_col[q] over block row k of a matrix in 4 × 4 node blocks (row pointers `ptr`, block
+    columns `col`, blocks (B, 16) row-major), for one node's 12 coordinate-layout entries: s and the result are
+    12-tuples (unknown b's coordinate a at 3 b + a), y_j is y[12 j : 12 j + 12]. The entries are scalars:
+    numba keeps scalars in registers but not a small array (a loop over a (4, 3) array: 1.3-1.6× the time)."""
+    s00, s01, s02, s10, s11, s12, s20, s21, s22, s30, s31, s32 = s
+    for q in range(ptr[k], ptr[k + 1]):
+        j = 12 * col[q]
+        l = blocks[q]
+        w00, w01, w02 = y[j], y[j + 1], y[j + 2]
+        w10, w11, w12 = y[j + 3], y[j + 4], y[j + 5]
+        w20, w21, w22 = y[j + 6], y[j + 7], y[j + 8]
+        w30, w31, w32 = y[j + 9], y[j + 10], y[j + 11]
+        s00 -= l[0] * w00 + l[1] * w10 + l[2] * w20 + l[3] * w30
+        s01 -= l[0] * w01 + l[1] * w11 + l[2] * w21 + l[3] * w31
+        s02 -= l[0] * w02 + l[1] * w12 + l[2] * w22 + l[3] * w32
+        s10 -= l[4] * w00 + l[5] * w10 + l[6] * w20 + l[7] * w30
+        s11 -= l[4] * w01 + l[5] * w11 + l[6] * w21 + l[7] * w31
+        s12 -= l[4] * w02 + l[5] * w12 + l[6] * w22 + l[7] * w32
+        s20 -= l[8] * w00 + l[9] * w10 + l[10] * w20 + l[11] * w30
+        s21 -= l[8] * w01 + l[9] * w11 + l[10] * w21 + l[11] * w31
+        s22 -= l[8] * w02 + l[9] * w12 + l[10] * w22 + l[11] * w32
+        s30 -= l[12] * w00 + l[13] * w10 + l[14] * w20 + l[15] * w30
+        s31 -= l[12] * w01 + l[13] * w11 + l[14] * w21 + l[15] * w31
+        s32 -= l[12] * w02 + l[13] * w12 + l[14] * w22 + l[15] * w32
+    return s00, s01, s02, s10, s11, s12, s20, s21, s22, s30, s31, s32
 
 
 @njit(cache=True)
@@ -224,34 +245,13 @@ def _coordinate_solve(fac, r, out, work):
     """out = (K_σ ⊗ I₃)⁻¹ r with the block Cholesky factor of `CoordinateSplit._factor`: L w = r block row by
     block row (in elimination order, w in `work`), then Lᵀ v = w from the last, scattering along L's rows (one
     triangle read twice rather than two once: it stays in cache). Node k's 12 entries, unknown b's coordinate a
-    as s_ba, are written out as scalars: numba keeps scalars in registers but not a small array (a loop over a
-    (4, 3) array: 1.6× the time)."""
+    as s_ba, are scalars (see `_block_row`)."""
     ptr, col, low, inv, node, _ = fac
     for k in range(ptr.shape[0] - 1):
         o = 12 * node[k]
-        s00, s01, s02 = r[o], r[o + 1], r[o + 2]
-        s10, s11, s12 = r[o + 3], r[o + 4], r[o + 5]
-        s20, s21, s22 = r[o + 6], r[o + 7], r[o + 8]
-        s30, s31, s32 = r[o + 9], r[o + 10], r[o + 11]
-        for q in range(ptr[k], ptr[k + 1]):
-            j = 12 * col[q]
-            l = low[q]
-            w00, w01, w02 = work[j], work[j + 1], work[j + 2]
-            w10, w11, w12 = work[j + 3], work[j + 4], work[j + 5]
-            w20, w21, w22 = work[j + 6], work[j + 7], work[j + 8]
-            w30, w31, w32 = work[j + 9], work[j + 10], work[j + 11]
-            s00 -= l[0] * w00 + l[1] * w10 + l[2] * w20 + l[3] * w30
-            s01 -= l[0] * w01 + l[1] * w11 + l[2] * w21 + l[3] * w31
-            s02 -= l[0] * w02 + l[1] * w12 + l[2] * w22 + l[3] * w32
-            s10 -= l[4] * w00 + l[5] * w10 + l[6] * w20 + l[7] * w30
-            s11 -= l[4] * w01 + l[5] * w11 + l[6] * w21 + l[7] * w31
-            s12 -= l[4] * w02 + l[5] * w12 + l[6] * w22 + l[7] * w32
-            s20 -= l[8] * w00 + l[9] * w10 + l[10] * w20 + l[11] * w30
-            s21 -= l[8] * w01 + l[9] * w11 + l[10] * w21 + l[11] * w31
-            s22 -= l[8] * w02 + l[9] * w12 + l[10] * w22 + l[11] * w32
-            s30 -= l[12] * w00 + l[13] * w10 + l[14] * w20 + l[15] * w30
-            s31 -= l[12] * w01 + l[13] * w11 + l[14] * w21 + l[15] * w31
-            s32 -= l[12] * w02 + l[13] * w12 + l[14] * w22 + l[15] * w32
+        s00, s01, s02, s10, s11, s12, s20, s21, s22, s30, s31, s32 = _block_row(
+            ptr, col, low, k, work, (r[o], r[o + 1], r[o + 2], r[o + 3], r[o + 4], r[o + 5], r[o + 6], r[o + 7],
+                                     r[o + 8], r[o + 9], r[o + 10], r[o + 11]))
         d = inv[k]
         o = 12 * k
         work[o] = d[0] * s00

@@ -272,20 +272,19 @@ def local_global(x, g, edges, con_nodes, con_weights, con_points, targets, activ
     return energy, iterations, accepted, count, status
 
 
-def solve_frame(system, split_data, diag_pos: np.ndarray, settings: LocalGlobalSettings, x0: np.ndarray,
-                targets: np.ndarray, active: np.ndarray, energy_floor: float, rot: np.ndarray, rig: np.ndarray,
-                node_fac: np.ndarray):
-    """`local_global` for a rig's `NormalEquations` and the data of `CoordinateSplit.for_active` (its K
-    diagonal at `diag_pos`); rot, rig, node_fac: scratch blocks. Returns (x, E, iterations, accepted
-    steps, energies, converged), the iterations limited to `then_gauss_newton` when it is set."""
-    k, fac, k_blocks = split_data
+def solve_frame(system, split_data, settings: LocalGlobalSettings, x0: np.ndarray, targets: np.ndarray,
+                active: np.ndarray, energy_floor: float, rot: np.ndarray, rig: np.ndarray, node_fac: np.ndarray):
+    """`local_global` for a rig's `NormalEquations` and the data of `CoordinateSplit.frame_data`; rot, rig,
+    node_fac: scratch blocks. Returns (x, E, iterations, accepted steps, energies, converged), the iterations
+    limited to `then_gauss_newton` when it is set."""
+    _, fac, k_blocks, _, k_diag = split_data
     w, cons = system.weights, system.constraints
     x = np.array(x0, dtype=np.float64, order="C")
     energies = np.empty(settings.max_iterations + 1)
     energy, iterations, accepted, count, status = local_global(
         x, system.g, system.edges, cons.nodes, cons.weights, cons.points,
         np.ascontiguousarray(targets, dtype=np.float64), np.ascontiguousarray(active, dtype=np.float64),
-        system.bridges, w.rot, w.reg, w.con, w.rig, fac, k_blocks, k[2][diag_pos], settings.memory, settings.local,
+        system.bridges, w.rot, w.reg, w.con, w.rig, fac, k_blocks, k_diag, settings.memory, settings.local,
         settings.line_search, settings.relaxation, settings.refactor,
         settings.then_gauss_newton or settings.max_iterations, settings.gain_tolerance, energy_floor, rot, rig,
         node_fac, energies)

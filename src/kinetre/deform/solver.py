@@ -414,7 +414,7 @@ class GaussNewton:
         converged."""
         before = self.split.factorisations
         x, energy, iterations, accepted, energies, converged = local_global_frame(
-            self.system, self.split.for_active(active), self.split.diag_pos, self.settings.local_global, x0,
+            self.system, self.split.frame_data(active), self.settings.local_global, x0,
             targets, active, self.energy_floor, self._rot, self._rig, self._node_fac)
         if converged:
             return SolveReport(x=x, energy=energy, iterations=iterations, accepted=accepted, energies=energies,
