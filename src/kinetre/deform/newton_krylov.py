@@ -45,8 +45,10 @@ def gauss_newton_pcg(x, g, edges, con_nodes, con_weights, con_points, targets, a
                      w_rot, w_reg, w_con, w_rig, kind, fac, kp, ki, kx, k_blocks, k_diag,
                      max_iterations, relative_tolerance, cg_iterations, cg_tolerance, lam, max_damping,
                      energy_floor, rot, rig, node_fac, energies, backtracks, curvature, coarse, kc,
-                     contraction, remaining_tolerance, stop, stop_after):
-    """Minimise E from x (N, 12, updated in place). Returns (E, iterations, accepted, CG iterations,
+                     contraction, remaining_tolerance, stop, stop_after, grad, start_energy):
+    """Minimise E from x (N, 12, updated in place), whose E is `start_energy` and gradient `grad` (12N) when
+    the caller has them (`pcg_frame.warm_start`; NaN: computed here into `grad`). Returns (E, iterations,
+    accepted, CG iterations,
     number of entries written to `energies` (E after each accepted step, from the initial E), λ, the last
     ratio of two successive accepted steps' decreases seen in this frame (-1: none), whether `stop` ended it).
     `stop` (uint8, shape (1,), or (0,): none) and `stop_after`: a live solve's `live_stop.Yield`; the frame
@@ -58,14 +60,15 @@ def gauss_newton_pcg(x, g, edges, con_nodes, con_weights, con_points, targets, a
     see `COARSE_STEPS` for why."""
     n = x.shape[0]
     m = 12 * n
-    grad = np.empty(m)
     neg = np.empty(m)
     diag = np.empty(m)
     damp = np.empty(m)
     x_new = np.empty_like(x)
     R = np.empty((n, 3, 3))
-    energy = energy_gradient(x, g, edges, con_nodes, con_weights, con_points, targets, active, bridges,
-                             w_rot, w_reg, w_con, w_rig, grad, True)
+    energy = start_energy
+    if not start_energy >= 0.0:
+        energy = energy_gradient(x, g, edges, con_nodes, con_weights, con_points, targets, active, bridges,
+                                 w_rot, w_reg, w_con, w_rig, grad, True)
     energies[0] = energy
     count = 1
     nu = 2.0

@@ -17,7 +17,7 @@ much cheaper iterations for far fewer factorisations (ours; see the benchmark).
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -28,7 +28,7 @@ from .krylov import ADDITIVE, BLOCK_JACOBI, COORDINATE, HALF_CYCLE, TWO_LEVEL, V
 from .live_stop import NO_FLAG, Yield
 from .local_global import LocalGlobalSettings
 from .local_global import solve_frame as local_global_frame
-from .newton_krylov import gauss_newton_pcg
+from .pcg_frame import pcg_frame
 from .normal_equations import NormalEquations
 from .rigid_start import rigid_start
 
@@ -146,6 +146,11 @@ class GaussNewton:
         self._no_coarse = (np.zeros((0, 0)), region, offsets)
         self._coarse_on = False  # "adaptive": the coarse space is in use
         self._no_gradient = np.zeros(0)
+        # the PCG frame's buffers: the gradient, E after each step (a jump's doubled budget included), and
+        # "no pose before" (no constant-velocity guess)
+        self._grad = np.zeros(system.n)
+        self._energies = np.zeros(2 * settings.max_iterations + 1)
+        self._no_pose = np.zeros((0, 12))
         self._last_energy = None  # the last solve's result ("pcg")
         self._jump_left = 0  # exact steps left to a jump that `stop` cut short (it goes on next frame)
         # Below this, residuals are at round-off level (1e-10 of the graph's size per residual).
@@ -190,22 +195,39 @@ class GaussNewton:
         return self._linear_data
 
     def solve(self, x0: np.ndarray, targets: np.ndarray, active: np.ndarray,
-              guess: np.ndarray | None = None, stop=None) -> SolveReport:
+              guess: np.ndarray | None = None, stop=None, before: np.ndarray | None = None) -> SolveReport:
         """Minimise E from x0 (N, 12) for constraint targets (L, 3) scaled by `active` (L,).
 
         `guess` (N, 12), e.g. a pose extrapolated from the last frames, replaces x0 as the start when
-        its energy is lower. `stop()`, asked after each step of a jump frame's exact solve, says a newer
+        its energy is lower; `before` (N, 12), the pose one solve before x0, gives the constant-velocity
+        guess 2 x0 − before (made inside the PCG frame's numba call: `pcg_frame.py`). `stop()`, asked after
+        each step of a jump frame's exact solve, says a newer
         frame is waiting: the frame then ends there (E lowered or, after a rejected step, the damping
         raised; not converged) and the next frames go on with exact steps until the jump's budget is spent
         or it converges, so a live solve never holds one frame for the whole budget (a 253-node jump: 20
         factorisations, ~100 ms). A `live_stop.Yield` also ends a PCG frame after an accepted step (read
         inside the numba loop); the next frame goes on from its pose. Either way `SolveReport.stopped`.
         """
-        e0 = self.energy(x0, targets, active)
-        if guess is not None:
-            e_guess = self.energy(guess, targets, active)
-            if e_guess < e0:
-                x0, e0 = guess, e_guess
+        s = self.settings
+        if s.method == "pcg" and guess is None and self._last_energy is not None and not self._jump_left:
+            # the usual frame: start, jump test and steps in one numba call
+            threshold = s.jump * max(self._last_energy, self.energy_floor)
+            factored = self.split.factorisations
+            report = self._solve_pcg(x0, targets, active, stop=stop, before=before, threshold=threshold)
+            if report.iterations >= 0:
+                self._last_energy = report.energy
+                return report
+            x0, e0 = report.x, report.energy  # a jump: its start, taken on below
+            factored = self.split.factorisations - factored  # a new tracked set's factor, made for the test
+        else:
+            factored = 0
+            if guess is None and before is not None:
+                guess = 2.0 * x0 - before
+            e0 = self.energy(x0, targets, active)
+            if guess is not None:
+                e_guess = self.energy(guess, targets, active)
+                if e_guess < e0:
+                    x0, e0 = guess, e_guess
         if self.settings.method == "exact":
             return self._solve_exact(x0, targets, active)
         threshold = None if self._last_energy is None else self.settings.jump * max(self._last_energy,
@@ -223,6 +245,8 @@ class GaussNewton:
             lam = self._lam  # the jump's damping is not the scale of the frames after it
             report = self._solve_pcg(x0, targets, active, 2 * self.settings.max_iterations, stop)
             self._lam = lam
+            if factored:
+                report = replace(report, factorisations=report.factorisations + factored)
         elif self._jump_left or jump:
             # far from the warm start (a skeleton teleporting): twice the steps, else the frame can end
             # well above the minimum of the exact method, whose damping carries over from frame to frame
@@ -327,41 +351,46 @@ class GaussNewton:
                            stopped=stopped and iterations < max_iterations)
 
     def _solve_pcg(self, x0: np.ndarray, targets: np.ndarray, active: np.ndarray,
-                   max_iterations: int | None = None, stop=None) -> SolveReport:
-        """The same damped Gauss-Newton loop, each step from a few preconditioned CG iterations. Only a
-        `Yield` stop can end it early: the loop is one numba call."""
+                   max_iterations: int | None = None, stop=None, before: np.ndarray | None = None,
+                   threshold: float = np.inf) -> SolveReport:
+        """The same damped Gauss-Newton loop, each step from a few preconditioned CG iterations, from x0 or
+        the constant-velocity guess 2 x0 − `before` when its E is lower. Only a `Yield` stop can end it early:
+        the loop is one numba call. A start above `threshold` is a jump: then no step is taken, the report's
+        `iterations` is -1 and its x and energy are the start."""
         s = self.settings
         max_iterations = max_iterations or s.max_iterations
         sysm = self.system
         w = sysm.weights
         cons = sysm.constraints
-        before = self.split.factorisations
+        before_count = self.split.factorisations
         k, fac, k_blocks, kc, k_diag = self.split.frame_data(active)
-        x = np.array(x0, dtype=np.float64, order="C")
-        energies = np.empty(max_iterations + 1)
+        x = np.empty((sysm.n // 12, 12))
         lam = self._lam if self._lam is not None else s.initial_damping
         kind, coarse = self._preconditioner()
         flag, after = (stop.flag, stop.after) if isinstance(stop, Yield) else (NO_FLAG, 0.0)
-        energy, iterations, accepted, cg_total, count, lam, ratio, stopped = gauss_newton_pcg(
-            x, sysm.g, sysm.edges, cons.nodes, cons.weights, cons.points,
-            np.ascontiguousarray(targets, dtype=np.float64), np.ascontiguousarray(active, dtype=np.float64),
-            sysm.bridges, w.rot, w.reg, w.con, w.rig, kind, fac, k[0], k[1], k[2],
-            k_blocks, k_diag, max_iterations, s.relative_tolerance, s.cg_iterations,
-            s.cg_tolerance, lam, s.max_damping, self.energy_floor, self._rot, self._rig, self._node_fac, energies,
+        energy, iterations, accepted, cg_total, count, lam, ratio, stopped = pcg_frame(
+            x, np.ascontiguousarray(x0, dtype=np.float64), self._no_pose if before is None else before, threshold,
+            sysm.g, sysm.edges, cons.nodes, cons.weights, cons.points, np.ascontiguousarray(targets, dtype=np.float64),
+            np.ascontiguousarray(active, dtype=np.float64), sysm.bridges, w.rot, w.reg, w.con, w.rig, kind, fac, k[0],
+            k[1], k[2], k_blocks, k_diag, max_iterations, s.relative_tolerance, s.cg_iterations, s.cg_tolerance,
+            lam, s.max_damping, self.energy_floor, self._rot, self._rig, self._node_fac, self._energies,
             s.backtracks, s.curvature, self._coarse if coarse else self._no_coarse, kc,
             # "remaining" on the half cycle's frames only: with it on all frames, two skeletons on a leg each
             # (test_coarse_space's live Spot case) took a different path into the loop-around's hard frames
             # and the coarse space's worst frame needed 47 CG iterations against 41 without it
             self._contraction, s.remaining_tolerance if s.stop == "remaining" and kind == HALF_CYCLE and not coarse
-            else 0.0, flag, after)
+            else 0.0, flag, after, self._grad)
+        if iterations < 0:
+            return SolveReport(x=x, energy=energy, iterations=-1, accepted=0, factorisations=0, energies=())
         self._lam = min(max(lam, s.initial_damping), 1e3)
         if ratio > 0.0:
             self._contraction = 0.5 * (self._contraction + ratio)
         if iterations and iterations < max_iterations and max_iterations == s.max_iterations:
             self._follow(cg_total / iterations)
         return SolveReport(x=x, energy=energy, iterations=iterations, accepted=accepted,
-                           energies=tuple(energies[:count]), factorisations=self.split.factorisations - before,
-                           cg_iterations=cg_total, stopped=stopped)
+                           energies=tuple(self._energies[:count].tolist()),
+                           factorisations=self.split.factorisations - before_count, cg_iterations=cg_total,
+                           stopped=stopped)
 
     # "adaptive": above this many CG iterations per step (over the last frames) the two-level replaces the
     # half cycle; above COARSE_ON the coarse space joins in, and leaves below COARSE_OFF

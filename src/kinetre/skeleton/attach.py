@@ -213,16 +213,28 @@ def _bone_arrays(model) -> tuple[np.ndarray, np.ndarray]:
 
 
 @njit(cache=True)
-def _unit(v):
-    """(v / |v|, True), or (0, False) for a zero, tiny or non-finite v (an untracked joint may sit at inf)."""
-    n = np.sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2])
+def _unit_into(v0, v1, v2, out):
+    """out ← v / |v| and True, or 0 and False for a zero, tiny or non-finite v (an untracked joint may sit at
+    inf)."""
+    n = np.sqrt(v0 * v0 + v1 * v1 + v2 * v2)
     if n > 1e-12 and np.isfinite(n):
-        return v / n, True
-    return np.zeros(3), False
+        out[0], out[1], out[2] = v0 / n, v1 / n, v2 / n
+        return True
+    out[0] = out[1] = out[2] = 0.0
+    return False
+
+
+@njit(cache=True)
+def _perpendicular_unit(r, u, out):
+    """out ← the unit part of r perpendicular to the unit vector u (`_unit_into`)."""
+    d = r[0] * u[0] + r[1] * u[1] + r[2] * u[2]
+    return _unit_into(r[0] - d * u[0], r[1] - d * u[1], r[2] - d * u[2], out)
 
 
 @njit(cache=True)
 def _bone_rotations(bind, pos, tracked, bones, reference, parent_bone):
+    # scalar arithmetic into preallocated rows: per frame this runs for every bone of every skeleton, where
+    # small temporary arrays and BLAS calls on 3-vectors and 3×3 products cost more than the maths
     nb = bones.shape[0]
     rot = np.empty((nb, 3, 3))
     u0 = np.empty((nb, 3))
@@ -230,36 +242,44 @@ def _bone_rotations(bind, pos, tracked, bones, reference, parent_bone):
     ok1 = np.empty(nb, np.bool_)
     own = np.zeros(nb, np.bool_)
     for b in range(nb):
-        u0[b], _ = _unit(bind[bones[b, 1]] - bind[bones[b, 0]])
-        u, ok = _unit(pos[bones[b, 1]] - pos[bones[b, 0]])
-        ok1[b] = ok and tracked[bones[b, 0]] and tracked[bones[b, 1]]
-        u1[b] = u if ok1[b] else u0[b]
-        rot[b] = _minimal_rotation_one(u0[b], u1[b])
-    f0 = np.empty((3, 3))
-    f1 = np.empty((3, 3))
+        p, c = bones[b, 0], bones[b, 1]
+        _unit_into(bind[c, 0] - bind[p, 0], bind[c, 1] - bind[p, 1], bind[c, 2] - bind[p, 2], u0[b])
+        ok = _unit_into(pos[c, 0] - pos[p, 0], pos[c, 1] - pos[p, 1], pos[c, 2] - pos[p, 2], u1[b])
+        ok1[b] = ok and tracked[p] and tracked[c]
+        if not ok1[b]:
+            u1[b] = u0[b]
+        _minimal_rotation_into(u0[b], u1[b], rot[b])
+    r0 = np.empty(3)
+    r1 = np.empty(3)
+    w0 = np.empty(3)
+    w1 = np.empty(3)
     for b in range(nb):
         r = reference[b]
         if r < 0 or not (tracked[bones[r, 0]] and tracked[bones[r, 1]] and ok1[b]):
             continue
-        r0 = bind[bones[r, 1]] - bind[bones[r, 0]]
-        r1 = pos[bones[r, 1]] - pos[bones[r, 0]]
-        w0, ok_w0 = _unit(r0 - (r0 @ u0[b]) * u0[b])
-        w1, ok_w1 = _unit(r1 - (r1 @ u1[b]) * u1[b])
-        if not (ok_w0 and ok_w1):
+        for i in range(3):
+            r0[i] = bind[bones[r, 1], i] - bind[bones[r, 0], i]
+            r1[i] = pos[bones[r, 1], i] - pos[bones[r, 0], i]
+        if not (_perpendicular_unit(r0, u0[b], w0) and _perpendicular_unit(r1, u1[b], w1)):
             continue
-        f0[:, 0], f0[:, 1], f0[:, 2] = u0[b], w0, np.cross(u0[b], w0)
-        f1[:, 0], f1[:, 1], f1[:, 2] = u1[b], w1, np.cross(u1[b], w1)
-        rot[b] = f1 @ f0.T
+        # the frames (u, w, u × w) at bind and now: rot = F1 F0ᵀ = u1 u0ᵀ + w1 w0ᵀ + (u1 × w1)(u0 × w0)ᵀ
+        a, e = u0[b], u1[b]
+        c0 = (a[1] * w0[2] - a[2] * w0[1], a[2] * w0[0] - a[0] * w0[2], a[0] * w0[1] - a[1] * w0[0])
+        c1 = (e[1] * w1[2] - e[2] * w1[1], e[2] * w1[0] - e[0] * w1[2], e[0] * w1[1] - e[1] * w1[0])
+        for i in range(3):
+            for j in range(3):
+                rot[b, i, j] = e[i] * a[j] + w1[i] * w0[j] + c1[i] * c0[j]
         own[b] = True
     # parents come before children in the model's joint order, so one pass sees every parent first
+    turned = np.empty(3)
+    m = np.empty((3, 3))
     for b in range(nb):
         pb = parent_bone[b]
         if own[b] or pb < 0 or not ok1[b]:
             continue
-        turned = np.empty(3)
         for i in range(3):
             turned[i] = rot[pb, i, 0] * u0[b, 0] + rot[pb, i, 1] * u0[b, 1] + rot[pb, i, 2] * u0[b, 2]
-        m = _minimal_rotation_one(turned, u1[b])
+        _minimal_rotation_into(turned, u1[b], m)
         for i in range(3):
             for j in range(3):
                 rot[b, i, j] = m[i, 0] * rot[pb, 0, j] + m[i, 1] * rot[pb, 1, j] + m[i, 2] * rot[pb, 2, j]
@@ -272,20 +292,19 @@ def minimal_rotation(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     flat_a, flat_b = a.reshape(-1, 3), b.reshape(-1, 3)
     out = np.empty((len(flat_a), 3, 3))
     for i in range(len(flat_a)):
-        out[i] = _minimal_rotation_one(flat_a[i], flat_b[i])
+        _minimal_rotation_into(flat_a[i], flat_b[i], out[i])
     return out.reshape(a.shape[:-1] + (3, 3))
 
 
 @njit(cache=True)
-def _minimal_rotation_one(a, b):
-    """`minimal_rotation` for one pair of unit vectors (scalar arithmetic: per frame it runs twice per
-    bone, where small temporary arrays cost more than the maths)."""
+def _minimal_rotation_into(a, b, out):
+    """`minimal_rotation` for one pair of unit vectors into out (3, 3) (scalar arithmetic: per frame it runs
+    twice per bone, where small temporary arrays cost more than the maths)."""
     v0 = a[1] * b[2] - a[2] * b[1]
     v1 = a[2] * b[0] - a[0] * b[2]
     v2 = a[0] * b[1] - a[1] * b[0]
     c = a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
     s2 = v0 * v0 + v1 * v1 + v2 * v2
-    out = np.empty((3, 3))
     if c < -1 + 1e-12 and s2 <= 1e-24:  # opposite: a half turn about an axis perpendicular to a
         h0, h1 = (1.0, 0.0) if abs(a[0]) < 0.9 else (0.0, 1.0)
         u0, u1, u2 = -a[2] * h1, a[2] * h0, a[0] * h1 - a[1] * h0  # a × (h0, h1, 0)
@@ -294,7 +313,7 @@ def _minimal_rotation_one(a, b):
         for i in range(3):
             for j in range(3):
                 out[i, j] = 2.0 * u[i] * u[j] - (1.0 if i == j else 0.0)
-        return out
+        return
     f = (1 - c) / s2 if s2 > 1e-24 else 0.5
     # I + [v]× + f [v]×², with [v]×² = v vᵀ − s2 I
     v = (v0, v1, v2)
@@ -307,7 +326,69 @@ def _minimal_rotation_one(a, b):
     out[1, 2] -= v0
     out[2, 0] -= v1
     out[2, 1] += v0
-    return out
+
+
+@dataclass(frozen=True, eq=False)
+class StackedAttachments:
+    """A rig's attachments stacked once at possession, so one numba call per frame moves the constraints of
+    every skeleton (`stacked_targets`): per skeleton a block of rows in the joint arrays (`first_joint`), its
+    bones and constraints after the previous skeleton's, with joint and bone indices shifted to match.
+
+    Attributes
+    ----------
+    first_joint : (S + 1,) int64, skeleton s's joints are rows first_joint[s]:first_joint[s + 1]
+    bind : (J, 3) the bind poses' joints; bones (B, 2), parent_bone (B,), twist_reference (B,) int64
+    joint, bone : (L,) int64 per constraint its joint or bone row (-1: none); offset, points (L, 3)
+    """
+
+    first_joint: np.ndarray
+    bind: np.ndarray
+    bones: np.ndarray
+    parent_bone: np.ndarray
+    twist_reference: np.ndarray
+    joint: np.ndarray
+    bone: np.ndarray
+    offset: np.ndarray
+    points: np.ndarray
+
+    @staticmethod
+    def of(attachments) -> "StackedAttachments":
+        joints = bones = 0
+        first, binds, bone_rows, parents, refs, joint, bone, offset, points = [0], [], [], [], [], [], [], [], []
+        for att in attachments:
+            model_bones, parent_bones = _bone_arrays(att.bind.model)
+            binds.append(np.asarray(att.bind.positions, np.float64))
+            bone_rows.append(model_bones + joints)
+            parents.append(np.where(parent_bones >= 0, parent_bones + bones, -1))
+            refs.append(np.where(att.twist_reference >= 0, att.twist_reference.astype(np.int64) + bones, -1))
+            joint.append(np.where(att.joint >= 0, att.joint.astype(np.int64) + joints, -1))
+            bone.append(np.where(att.bone >= 0, att.bone.astype(np.int64) + bones, -1))
+            offset.append(att.offset.reshape(-1, 3)), points.append(att.constraints.points.reshape(-1, 3))
+            joints += len(att.bind.model.joints)
+            bones += len(model_bones)
+            first.append(joints)
+
+        def stack(parts, dtype, shape):
+            return np.ascontiguousarray(np.concatenate(parts), dtype) if parts else np.zeros(shape, dtype)
+
+        return StackedAttachments(np.array(first, np.int64), stack(binds, np.float64, (0, 3)),
+                                  stack(bone_rows, np.int64, (0, 2)), stack(parents, np.int64, 0),
+                                  stack(refs, np.int64, 0), stack(joint, np.int64, 0), stack(bone, np.int64, 0),
+                                  stack(offset, np.float64, (0, 3)), stack(points, np.float64, (0, 3)))
+
+
+@njit(cache=True)
+def stacked_targets(bind, bones, parent_bone, twist_reference, joint, bone, offset, points, pos, tracked, q, active):
+    """`constraint_targets` of every skeleton at once on `StackedAttachments`' arrays and the frames' joints
+    stacked the same way (pos (J, 3), tracked (J,)): targets into q (L, 3), 1.0 / 0.0 per tracked / lost
+    constraint into `active` (L,) (the solver's scales). Returns the number of tracked constraints."""
+    rot = _bone_rotations(bind, pos, tracked, bones, twist_reference, parent_bone)
+    ok = _targets(joint, bone, offset, points, bind, pos, tracked, bones, rot, q)
+    count = 0
+    for i in range(ok.shape[0]):
+        active[i] = 1.0 if ok[i] else 0.0
+        count += ok[i]
+    return count
 
 
 def constraint_targets(att: SkeletonAttachment, frame: Skeleton) -> tuple[np.ndarray, np.ndarray]:
@@ -321,15 +402,17 @@ def constraint_targets(att: SkeletonAttachment, frame: Skeleton) -> tuple[np.nda
     pos = np.asarray(frame.positions, dtype=np.float64)
     tracked = np.asarray(frame.tracked, dtype=np.bool_)
     rot = bone_rotations(att.bind, frame, att.twist_reference) if (att.bone >= 0).any() else np.zeros((0, 3, 3))
-    return _targets(att.joint, att.bone, att.offset, att.constraints.points, np.asarray(att.bind.positions, np.float64),
-                    pos, tracked, _bone_arrays(frame.model)[0], rot)
+    q = np.zeros((len(att.joint), 3))
+    ok = _targets(att.joint, att.bone, att.offset, att.constraints.points, np.asarray(att.bind.positions, np.float64),
+                  pos, tracked, _bone_arrays(frame.model)[0], rot, q)
+    return q, ok
 
 
 @njit(cache=True)
-def _targets(joint, bone, offset, points, bind, pos, tracked, bones, rot):
+def _targets(joint, bone, offset, points, bind, pos, tracked, bones, rot, q):
+    """Targets into q (L, 3); returns the (L,) tracked mask."""
     # scalar arithmetic throughout: small temporary arrays per constraint cost more than the maths
     n = joint.shape[0]
-    q = np.zeros((n, 3))
     ok = np.zeros(n, np.bool_)
     for i in range(n):
         if joint[i] >= 0:
@@ -364,4 +447,4 @@ def _targets(joint, bone, offset, points, bind, pos, tracked, bones, rot):
         if not ok[i]:
             for a in range(3):
                 q[i, a] = points[i, a]
-    return q, ok
+    return ok

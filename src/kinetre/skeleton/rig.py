@@ -12,7 +12,7 @@ from ..deform.pose import GraphPose
 from ..deform.solver import GaussNewton, SolverSettings, SolveReport
 from ..errors import AttachError, BadSkeletonError
 from ..graph.graph import DeformationGraph
-from .attach import SkeletonAttachment, attach_skeleton, constraint_targets
+from .attach import SkeletonAttachment, StackedAttachments, attach_skeleton, stacked_targets
 from .models import Skeleton
 from .subsets import subset_mask
 
@@ -49,6 +49,13 @@ class Rig:
         bridges = graph.edges[graph.bridges]
         self.system = NormalEquations.build(graph.nodes, graph.edges, bridges, self.constraints, weights)
         self.solver = GaussNewton(self.system, settings, backend)
+        # per frame the skeletons' joints are copied into one stacked array and every target moved by one
+        # numba call into buffers of the rig (`stacked_targets`)
+        self._stacked = StackedAttachments.of(self.attachments)
+        self._positions = np.zeros((int(self._stacked.first_joint[-1]), 3))
+        self._tracked = np.zeros(len(self._positions), bool)
+        self._q = np.zeros((len(self.constraints), 3))
+        self._active = np.zeros(len(self.constraints))
         self._x = np.zeros((graph.node_count, 12))
         self._x[:, [0, 4, 8]] = 1.0
         self._x_before: np.ndarray | None = None  # the pose one solve earlier, for a constant-velocity guess
@@ -84,20 +91,27 @@ class Rig:
 
     def targets(self, skeletons) -> tuple[np.ndarray, np.ndarray]:
         """Constraint targets (L, 3) and active mask (L,) for the current frame of every skeleton."""
+        q, active, _ = self._targets(skeletons)
+        return q.copy(), active > 0.0
+
+    def _targets(self, skeletons) -> tuple[np.ndarray, np.ndarray, int]:
+        """`targets` into the rig's buffers (overwritten next frame), the mask as the solver's (L,) scales,
+        and the number of tracked constraints."""
         frames = _as_list(skeletons)
         if len(frames) != len(self.attachments):
             raise BadSkeletonError(f"the rig was attached to {len(self.attachments)} skeleton(s), "
                                    f"got {len(frames)} frame(s)")
-        qs, oks = [], []
-        for att, frame in zip(self.attachments, frames):
-            if frame.model != att.bind.model:
+        first = self._stacked.first_joint
+        for s, (att, frame) in enumerate(zip(self.attachments, frames)):
+            if frame.model is not att.bind.model and frame.model != att.bind.model:
                 raise BadSkeletonError(f"frame has skeleton model {frame.model.name!r}, "
                                        f"the rig was attached with {att.bind.model.name!r}")
-            q, ok = constraint_targets(att, frame)
-            qs.append(q), oks.append(ok)
-        if not qs:
-            return np.zeros((0, 3)), np.zeros(0, bool)
-        return np.concatenate(qs), np.concatenate(oks)
+            self._positions[first[s]:first[s + 1]] = frame.positions
+            self._tracked[first[s]:first[s + 1]] = frame.tracked
+        st = self._stacked
+        count = stacked_targets(st.bind, st.bones, st.parent_bone, st.twist_reference, st.joint, st.bone, st.offset,
+                                st.points, self._positions, self._tracked, self._q, self._active)
+        return self._q, self._active, count
 
     def solve(self, skeletons, stop=None) -> GraphPose:
         """Deform the graph so the attached joints and bones follow the current frame(s).
@@ -107,11 +121,10 @@ class Rig:
         frame; with nothing tracked, or a non-finite result, the last good pose is returned. `stop`: see
         `GaussNewton.solve` (a live solve passes "is a newer frame waiting?").
         """
-        q, ok = self.targets(skeletons)
-        if not ok.any():
+        q, active, count = self._targets(skeletons)
+        if not count:
             return self._pose_of(self._x, float("nan"), 0)
-        guess = None if self._x_before is None else 2.0 * self._x - self._x_before
-        report = self.solver.solve(self._x, q, ok.astype(np.float64), guess, stop)
+        report = self.solver.solve(self._x, q, active, stop=stop, before=self._x_before)
         self.last_report = report
         if not np.isfinite(report.x).all():
             return self._pose_of(self._x, float("nan"), 0)
