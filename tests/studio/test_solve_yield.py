@@ -1,6 +1,7 @@
 """The solve worker's process side reads the scene's shared "newer frame" byte inside the PCG loop: a solve
 with it set (and its CPU share spent) yields after one accepted step and says so in its reply; the same
 frame with it clear runs to convergence."""
+import asyncio
 import multiprocessing
 import threading
 
@@ -54,3 +55,68 @@ def test_the_worker_yields_inside_the_pcg_loop_when_the_shared_byte_is_set(spot6
     assert cut[3] and cut[1].iterations == 1  # yielded after its first step
     assert free[1].energy < cut[1].energy  # not converged
     np.testing.assert_array_equal(runs[0][1][1].rotations, runs[1][1][1].rotations)  # the same until then
+
+
+class StubSolver:
+    """Poses 1, 2, … (node translations), each solve taking a few loop turns; records what was published when
+    each solve was asked for and whether it was asked to yield."""
+
+    def __init__(self, graph, published):
+        self.graph, self.published, self.calls, self.cpu_ms, self.yielded = graph, published, [], 0.0, 0
+
+    async def attach(self, graph, skeletons, settings=None):
+        return [np.arange(3)]
+
+    def newer_frame(self):
+        self.yielded += 1
+
+    async def solve(self, skeleton):
+        from kinetre.deform.pose import GraphPose
+        self.calls.append(len(self.published))
+        await asyncio.sleep(0.01)
+        pose = GraphPose.identity(self.graph.node_count)
+        pose.translations[:] = len(self.calls)
+        return pose
+
+
+def test_a_pose_solved_while_a_newer_frame_waits_goes_out_once_the_next_solve_is_sent(spot64, walk):
+    """Every solved pose is published once, in order, and recorded; a pose whose solve ended with a newer
+    frame waiting is published right after the next solve has been asked for (not before: the solver works
+    meanwhile), one without is published at once. `late` asks a solve whose frame is that old to yield."""
+    from kinetre.studio.channels import Frame, Hub
+    from kinetre.studio.protocol import unpack_transforms
+    from kinetre.studio.scene import TRANSFORMS, Scene
+    mesh, graph = spot64
+    hub = Hub()
+    published = []
+    hub.subscribe(TRANSFORMS).direct = lambda frame: published.append(frame.data) or True
+
+    async def go():
+        scene = Scene(hub, mesh, graph, solver=StubSolver(graph, published))
+        solver = scene.solver
+
+        def feed(k):
+            scene.receive(Frame("kinetre.skeleton.u", k, float(k), b"", (k, float(k), walk[k])))
+        feed(1)
+        await scene.possess("u")
+        start = len(published)
+        await scene.solve_once()  # nothing newer: out at once
+        after_first = len(published)
+        feed(2)
+        task = asyncio.get_running_loop().create_task(scene.solve_once())
+        await asyncio.sleep(0.002)
+        feed(3)  # arrives during the second solve
+        await task
+        after_second = len(published)
+        assert solver.yielded == 2  # frames 2 and 3 arrived (Scene.receive); no timer without `late`
+        await scene.solve_once(late=0.0)  # the third, asked to yield at once
+        assert solver.yielded == 3
+        return start, after_first, after_second, solver
+
+    start, after_first, after_second, solver = asyncio.run(go())
+    assert after_first == start + 1
+    assert after_second == after_first  # held: a newer frame waited
+    assert solver.calls[-1] == after_second  # …and still held when the third solve was asked for
+    assert len(published) == after_second + 2  # then the second and the third
+    moved = [float(unpack_transforms(block)[4][0, 0, 3]) for block in published[start:]]  # node 0's t_x
+    assert moved == [1.0, 2.0, 3.0]

@@ -38,6 +38,7 @@ TRANSFORMS = "kinetre.transforms"
 STATE = "kinetre.state"
 GATHER_S = 0.010  # longest wait for another possessing user's frame that is due (see Scene._gather)
 GATHER_SLACK_S = 0.005  # how late a user's frame may be (arrival jitter) and still be waited for
+LATE_S = 0.015  # a frame this long in the scene yields after its solve's next step (see Scene.solve_once)
 
 
 def skeleton_subject(client: str) -> str:
@@ -141,11 +142,13 @@ class Scene:
         self.superseded = 0  # possessing users' frames replaced by a newer one before any solve used them
         self.frames_in = 0  # skeleton frames that reached the scene
         self._skeletons = None  # the subscription, whose `skipped` counts frames merged latest-wins
+        self._unpublished = None  # (pose, t_source, skeletons) solved, published once the next solve is sent
         self.set_mesh(mesh, graph, name)
 
     # --- mesh and placement -------------------------------------------------------------------------
     def set_mesh(self, mesh: Mesh, graph: DeformationGraph, name: str) -> None:
         """Swap in a new mesh: everybody is released, the pose resets to rest."""
+        self._flush()
         self.mesh, self.graph, self.name = mesh, graph, name
         self.mesh_id += 1
         self.rig, self.possessors = None, []
@@ -280,6 +283,7 @@ class Scene:
         async with self._lock:
             possessors = [c for c, u in self.users.items() if u.bind is not None]
             if not possessors:
+                self._flush()
                 self.rig, self.possessors = None, []
                 self.pose = GraphPose.identity(self.graph.node_count)  # let go: back to rest
                 self._publish_pose(now_ms())
@@ -305,7 +309,7 @@ class Scene:
                 await self._dirty.wait()
                 await self._gather()
                 try:
-                    await self.solve_once()
+                    await self.solve_once(LATE_S)
                 except Exception as exc:  # one bad frame must not stop the scene for everybody
                     self.last_error = f"solve failed: {type(exc).__name__}: {exc}"
                     log.exception("solve failed")
@@ -329,6 +333,7 @@ class Scene:
             deadline = self._gather_deadline(time.monotonic())
             if deadline is None:
                 return
+            self._flush()  # no solve starts yet: the last pose goes out now
             try:
                 await asyncio.wait_for(self._dirty.wait(), deadline - time.monotonic())
             except asyncio.TimeoutError:
@@ -373,38 +378,66 @@ class Scene:
             log.exception("bad frame on %s", frame.subject)
         return True
 
-    async def solve_once(self) -> GraphPose | None:
-        """Solve with every possessing user's newest frame and publish the node matrices."""
+    async def solve_once(self, late: float | None = None) -> GraphPose | None:
+        """Solve with every possessing user's newest frame and publish the node matrices.
+
+        The solver yields after a Gauss-Newton step (`solve_worker.yielding`) to a newer frame, or once the
+        oldest frame it solves has been `late` seconds in the scene (the live loop: `LATE_S`): its pose is published at once and the next
+        frame goes on from it, instead of every viewer's picture waiting for the rest of a long solve. When
+        a newer frame already waits as a solve ends, its pose is published once the next solve is under
+        way: the solver then works while the transforms go out to every page (the embedded studio's
+        fan-out, 3-8 ms), instead of waiting for them."""
         async with self._lock:
             if self.rig is None:
+                self._flush()
                 return None
             users = [self.users[c] for c in self.possessors if c in self.users]
             if len(users) != len(self.possessors):
+                self._flush()
                 return None
             frames = [u.masked(self.placement.to_local(u.latest)) for u in users]
+            arrived = min((u.arrived for u in users if u.used != u.seq), default=time.monotonic())
             for u in users:
                 u.used = u.seq
             t_source = max(u.t for u in users)
             start = time.perf_counter()
+            loop = asyncio.get_running_loop()
+            if self._unpublished is not None:
+                loop.call_soon(self._flush)  # runs once the solve's request is out
+            timer = None if late is None else loop.call_later(max(arrived + late - time.monotonic(), 0.0),
+                                                              self.solver.newer_frame)
             try:
                 pose = await self.solver.solve(frames if len(frames) > 1 else frames[0])
             except SolverLost:
                 self.rig = None  # the worker died: re-attach everybody at their current pose
                 self._rebuild_rig_later()
                 raise
+            finally:
+                if timer is not None:
+                    timer.cancel()
             self.solve_ms = (self.solve_ms + [1000 * (time.perf_counter() - start)])[-60:]
             self.solve_cpu_ms = (self.solve_cpu_ms + [self.solver.cpu_ms])[-600:]
             self.stopped += bool(getattr(self.solver, "stopped", False))
             self.pose = pose
-            if self.recording is not None:  # on disk before any viewer sees the frame
-                self.recording.append(self.seq + 1, now_ms(), pose, {u.client: u.latest for u in users})
-            self._publish_pose(t_source)
+            self._unpublished = (pose, t_source, {u.client: u.latest for u in users})
+            if not any(u.seq != u.used for u in users):  # else once the next solve is sent
+                self._flush()
             return pose
 
-    def _publish_pose(self, t_source: float) -> None:
+    def _flush(self) -> None:
+        """Record and publish the last solve's pose if it is not out yet."""
+        if self._unpublished is None:
+            return
+        pose, t_source, skeletons = self._unpublished
+        self._unpublished = None
+        if self.recording is not None:  # on disk before any viewer sees the frame
+            self.recording.append(self.seq + 1, now_ms(), pose, skeletons)
+        self._publish_pose(t_source, pose)
+
+    def _publish_pose(self, t_source: float, pose: GraphPose | None = None) -> None:
         self.seq += 1
-        block = pack_transforms(self.seq, self.mesh_id, self.pose.node_matrices(self.graph.nodes), t_source,
-                                now_ms())
+        pose = self.pose if pose is None else pose
+        block = pack_transforms(self.seq, self.mesh_id, pose.node_matrices(self.graph.nodes), t_source, now_ms())
         self.hub.publish(Frame(TRANSFORMS, self.seq, t_source, block))
 
     def transforms_block(self) -> bytes:
