@@ -210,10 +210,7 @@ def test_live_two_legs_on_spot_coarse_space_adds_no_tail(data_dir):
     mesh = standing_mesh(kinetre.load_mesh(str(resources.files("kinetre") / "data" / "spot.obj")))
     take = load_bvh(data_dir / "bvh" / "cmu_12_01_walk.bvh")
     walk = [take.frame(i) for i in range(0, len(take), 4)]
-    first = walk[0]
-    centre = first.positions[first.tracked].mean(axis=0)
-    place = Placement(first.height / float(np.ptp(mesh.vertices[:, 1])),
-                      (float(centre[0]), float(first.positions[first.tracked, 1].min()), float(centre[2])), 0.0)
+    place = Placement.fitted(walk[0], mesh)
     local = [place.to_local(f) for f in walk]
     g = kinetre.build_graph(mesh, nodes=256, seed=0)
     runs = _two_legs(g, local)

@@ -40,9 +40,7 @@ def test_the_worker_yields_inside_the_pcg_loop_when_the_shared_byte_is_set(spot6
     monkeypatch.setattr(solve_worker, "freeze_heap", lambda: None)
     monkeypatch.setattr(solve_worker, "YIELD_AFTER_S", -1.0)  # the frame's CPU share is spent at once
     mesh, graph = spot64
-    sk = walk[0]  # stood where the skeleton stands, scaled to its height (the studio's "fit")
-    centre, foot = sk.positions[sk.tracked].mean(axis=0), float(sk.positions[sk.tracked, 1].min())
-    place = Placement(sk.height / float(np.ptp(mesh.vertices[:, 1])), (float(centre[0]), foot, float(centre[2])), 0.0)
+    place = Placement.fitted(walk[0], mesh)
     skeletons = [place.to_local(walk[k]) for k in (0, 4, 12)]
     attach = ("attach", graph, skeletons[0], SolverSettings())
     runs = {}

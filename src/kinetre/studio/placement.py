@@ -41,6 +41,15 @@ class Placement:
         m[:3, 3] = self.position
         return m
 
+    @classmethod
+    def fitted(cls, skeleton: Skeleton, mesh: Mesh, yaw: float = 0.0) -> "Placement":
+        """The mesh scaled to the skeleton's height and stood where it stands (the studio's "fit"; paper:
+        scale to height): its tracked joints' centre, on their lowest point."""
+        tracked = skeleton.positions[skeleton.tracked]
+        centre = tracked.mean(axis=0)
+        return cls(skeleton.height / float(np.ptp(mesh.vertices[:, 1])),
+                   (float(centre[0]), float(tracked[:, 1].min()), float(centre[2])), yaw)
+
     def to_local(self, skeleton: Skeleton) -> Skeleton:
         """The skeleton in the mesh's own frame: l = Rᵀ (x − p) / s."""
         rt = self.rotation.T

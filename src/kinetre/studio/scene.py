@@ -180,10 +180,7 @@ class Scene:
         mesh_height = float(np.ptp(self.mesh.vertices[:, 1]))
         if height <= 0.3 or mesh_height <= 0:
             raise AttachError(f"the tracked skeleton is {height:.2f} m tall: show your whole body to the camera")
-        centre = sk.positions[sk.tracked].mean(axis=0)
-        foot = float(sk.positions[sk.tracked, 1].min())
-        self.placement = Placement(height / mesh_height, (float(centre[0]), foot, float(centre[2])),
-                                   self.placement.yaw)
+        self.placement = Placement.fitted(sk, self.mesh, self.placement.yaw)
         self.publish_state()
 
     # --- users --------------------------------------------------------------------------------------
