@@ -176,18 +176,19 @@ def node_factors(k_blocks, rot, rig, bridges, damp, out):
     A node's t unknowns meet only K (diagonal per coordinate: k_tt I₃ + damping) and, through K, its
     own R, so they are eliminated first: out[:9, :9] holds the Cholesky factor of the 9×9 Schur
     complement S = A − C D⁻¹ Cᵀ (reciprocal diagonal), out[9 + a, 9 + a] = 1 / D_a and out[9, b] = K[b, 3].
+    Only S's lower triangle is assembled: the factorisation reads no more (512 nodes: 145-170 against 180-200 µs).
     """
     n = rot.shape[0]
     for j in range(n):
         a = out[j]
         for u in range(9):
-            for v in range(9):
+            for v in range(u + 1):
                 a[u, v] = rot[j, u, v]
     for e in range(bridges.shape[0]):
         for s in range(2):
             a = out[bridges[e, s]]
             for u in range(9):
-                for v in range(9):
+                for v in range(u + 1):
                     a[u, v] += rig[e, 9 * s + u, 9 * s + v]
     for j in range(n):
         a = out[j]
@@ -197,7 +198,7 @@ def node_factors(k_blocks, rot, rig, bridges, damp, out):
             a[9 + c, 9 + c] = 1.0 / (kb[3, 3] + damp[o + 9 + c])
             a[9, c] = kb[c, 3]
         for b in range(3):
-            for bb in range(3):
+            for bb in range(b + 1):
                 kk = kb[b, bb]
                 kt = kb[b, 3] * kb[bb, 3]
                 for c in range(3):
