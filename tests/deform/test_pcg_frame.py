@@ -58,3 +58,14 @@ def test_one_call_frames_equal_the_python_path(walk, settings, monkeypatch):
             guessed += fused.solver.energy(2.0 * last - before, q, ok.astype(float)) < e_last
     # the teleport and the second walk's loop-around are jumps, in each of the two rigs
     assert len(jumps) >= 4 and guessed > len(seq) // 2
+
+
+def test_all_finite_finds_one_bad_entry():
+    from kinetre.deform.pcg_frame import all_finite
+    x = np.zeros((5, 12))
+    x[:, [0, 4, 8]] = 1.0
+    assert all_finite(x)
+    for bad in (np.nan, np.inf, -np.inf):
+        y = x.copy()
+        y[3, 10] = bad
+        assert not all_finite(y)

@@ -30,9 +30,10 @@ def energy_gradient(x, g, edges, con_nodes, con_weights, con_points, targets, ac
                 s -= 1.0
             e_rot += s * s
             if want_gradient:
+                ws = w_rot * s
                 for a in range(3):
-                    grad[o + 3 * p + a] += w_rot * s * x[j, 3 * a + q]
-                    grad[o + 3 * q + a] += w_rot * s * x[j, 3 * a + p]
+                    grad[o + 3 * p + a] += ws * x[j, 3 * a + q]
+                    grad[o + 3 * q + a] += ws * x[j, 3 * a + p]
     e_reg = 0.0
     for e in range(edges.shape[0]):  # Eq. 4, both directions of each edge
         for d in range(2):
@@ -53,28 +54,33 @@ def energy_gradient(x, g, edges, con_nodes, con_weights, con_points, targets, ac
                     grad[12 * j + 9 + a] += wr
                     grad[12 * k + 9 + a] -= wr
     e_con = 0.0
+    carriers = con_nodes.shape[1]
+    offset = np.empty((carriers, 3))  # p_ℓ − g_j per carrier: read by all three coordinates and the gradient
     for c in range(con_nodes.shape[0]):  # Eq. 5
         s = active[c]
         if s == 0.0:
             continue
+        for i in range(carriers):
+            j = con_nodes[c, i]
+            for b in range(3):
+                offset[i, b] = con_points[c, b] - g[j, b]
         for a in range(3):
             phi = 0.0
-            for i in range(con_nodes.shape[1]):
+            for i in range(carriers):
                 j = con_nodes[c, i]
-                phi += con_weights[c, i] * (x[j, 3 * a] * (con_points[c, 0] - g[j, 0])
-                                            + x[j, 3 * a + 1] * (con_points[c, 1] - g[j, 1])
-                                            + x[j, 3 * a + 2] * (con_points[c, 2] - g[j, 2])
-                                            + g[j, a] + x[j, 9 + a])
+                phi += con_weights[c, i] * (x[j, 3 * a] * offset[i, 0] + x[j, 3 * a + 1] * offset[i, 1]
+                                            + x[j, 3 * a + 2] * offset[i, 2] + g[j, a] + x[j, 9 + a])
             r = s * (phi - targets[c, a])
             e_con += r * r
             if want_gradient:
                 wr = w_con * s * r
-                for i in range(con_nodes.shape[1]):
-                    j = con_nodes[c, i]
+                for i in range(carriers):
+                    o = 12 * con_nodes[c, i] + a
                     wi = wr * con_weights[c, i]
-                    for b in range(3):
-                        grad[12 * j + 3 * b + a] += wi * (con_points[c, b] - g[j, b])
-                    grad[12 * j + 9 + a] += wi
+                    grad[o] += wi * offset[i, 0]
+                    grad[o + 3] += wi * offset[i, 1]
+                    grad[o + 6] += wi * offset[i, 2]
+                    grad[o + 9] += wi
     e_rig = 0.0
     for e in range(bridges.shape[0]):  # Eq. 7: R_kᵀ R_j − I and the midpoint gap
         j = bridges[e, 0]

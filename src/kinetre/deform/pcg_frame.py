@@ -53,3 +53,14 @@ def pcg_frame(x, x0, before, threshold, g, edges, con_nodes, con_weights, con_po
                             max_iterations, relative_tolerance, cg_iterations, cg_tolerance, lam, max_damping,
                             energy_floor, rot, rig, node_fac, energies, backtracks, curvature, coarse, kc,
                             contraction, remaining_tolerance, stop, stop_after, grad, energy)
+
+
+@njit(cache=True)
+def all_finite(x):
+    """Whether every entry of the pose x (N, 12) is finite (`Rig.solve`'s check on each result: numpy's
+    isfinite and all, on the caches the frame left cold, cost 40 µs of a 2 ms frame)."""
+    for j in range(x.shape[0]):
+        for u in range(x.shape[1]):
+            if not np.isfinite(x[j, u]):
+                return False
+    return True

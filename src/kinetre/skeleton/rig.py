@@ -8,6 +8,7 @@ import numpy as np
 from ..deform.constraints import PointConstraints
 from ..deform.energy import EnergyWeights
 from ..deform.normal_equations import NormalEquations
+from ..deform.pcg_frame import all_finite
 from ..deform.pose import GraphPose
 from ..deform.solver import GaussNewton, SolverSettings, SolveReport
 from ..errors import AttachError, BadSkeletonError
@@ -49,11 +50,9 @@ class Rig:
         bridges = graph.edges[graph.bridges]
         self.system = NormalEquations.build(graph.nodes, graph.edges, bridges, self.constraints, weights)
         self.solver = GaussNewton(self.system, settings, backend)
-        # per frame the skeletons' joints are copied into one stacked array and every target moved by one
-        # numba call into buffers of the rig (`stacked_targets`)
+        # per frame the skeletons' joints are stacked and every target moved by one numba call into buffers
+        # of the rig (`stacked_targets`)
         self._stacked = StackedAttachments.of(self.attachments)
-        self._positions = np.zeros((int(self._stacked.first_joint[-1]), 3))
-        self._tracked = np.zeros(len(self._positions), bool)
         self._q = np.zeros((len(self.constraints), 3))
         self._active = np.zeros(len(self.constraints))
         self._x = np.zeros((graph.node_count, 12))
@@ -101,16 +100,18 @@ class Rig:
         if len(frames) != len(self.attachments):
             raise BadSkeletonError(f"the rig was attached to {len(self.attachments)} skeleton(s), "
                                    f"got {len(frames)} frame(s)")
-        first = self._stacked.first_joint
-        for s, (att, frame) in enumerate(zip(self.attachments, frames)):
+        for att, frame in zip(self.attachments, frames):
             if frame.model is not att.bind.model and frame.model != att.bind.model:
                 raise BadSkeletonError(f"frame has skeleton model {frame.model.name!r}, "
                                        f"the rig was attached with {att.bind.model.name!r}")
-            self._positions[first[s]:first[s + 1]] = frame.positions
-            self._tracked[first[s]:first[s + 1]] = frame.tracked
+        if len(frames) == 1:
+            positions, tracked = np.ascontiguousarray(frames[0].positions), frames[0].tracked
+        else:
+            positions = np.concatenate([f.positions for f in frames])
+            tracked = np.concatenate([f.tracked for f in frames])
         st = self._stacked
         count = stacked_targets(st.bind, st.bones, st.parent_bone, st.twist_reference, st.joint, st.bone, st.offset,
-                                st.points, self._positions, self._tracked, self._q, self._active)
+                                st.points, positions, tracked, self._q, self._active)
         return self._q, self._active, count
 
     def solve(self, skeletons, stop=None) -> GraphPose:
@@ -126,7 +127,7 @@ class Rig:
             return self._pose_of(self._x, float("nan"), 0)
         report = self.solver.solve(self._x, q, active, stop=stop, before=self._x_before)
         self.last_report = report
-        if not np.isfinite(report.x).all():
+        if not all_finite(report.x):
             return self._pose_of(self._x, float("nan"), 0)
         self._x_before, self._x = self._x, report.x
         return self._pose_of(self._x, report.energy, report.iterations)
