@@ -118,3 +118,27 @@ def test_a_pose_solved_while_a_newer_frame_waits_goes_out_once_the_next_solve_is
     assert len(published) == after_second + 2  # then the second and the third
     moved = [float(unpack_transforms(block)[4][0, 0, 3]) for block in published[start:]]  # node 0's t_x
     assert moved == [1.0, 2.0, 3.0]
+
+
+def test_a_pose_held_for_the_next_solve_is_in_the_take_when_recording_stops(spot64, walk):
+    """Stop recording right after a solve whose pose is held (a newer frame waited): the take still has it."""
+    from kinetre.studio.channels import Frame, Hub
+    from kinetre.studio.scene import Scene
+    mesh, graph = spot64
+
+    async def go():
+        scene = Scene(Hub(), mesh, graph, solver=StubSolver(graph, []))
+        scene.receive(Frame("kinetre.skeleton.u", 1, 1.0, b"", (1, 1.0, walk[1])))
+        await scene.possess("u")
+        scene.start_recording()
+        await scene.solve_once()  # out at once: recorded
+        scene.receive(Frame("kinetre.skeleton.u", 2, 2.0, b"", (2, 2.0, walk[2])))
+        task = asyncio.get_running_loop().create_task(scene.solve_once())
+        await asyncio.sleep(0.002)
+        scene.receive(Frame("kinetre.skeleton.u", 3, 3.0, b"", (3, 3.0, walk[3])))  # during the second solve
+        await task
+        assert scene._unpublished is not None  # the second solve's pose is held
+        return scene.stop_recording()
+
+    take = asyncio.run(go())
+    assert [float(frame.pose.translations[0, 0]) for frame in take] == [1.0, 2.0]

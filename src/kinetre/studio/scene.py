@@ -487,6 +487,7 @@ class Scene:
 
     def stop_recording(self) -> list[TakeFrame]:
         """The recorded frames, read back from the take log (which is then removed)."""
+        self._flush()  # a pose held back for the next solve's request was solved while recording
         log_, self.recording = self.recording, None
         self.publish_state()
         if log_ is None:
