@@ -2,7 +2,8 @@
 
 Loads a rigged humanoid (glTF/GLB/VRM), maps its bones to Kinect-20 (a saved map next to it wins), retargets
 any motion source (BVH, recorded take, video) with Algorithm 1 and writes the avatar animated by its own
-joints. `--write-map` saves the automatic map as JSON next to the avatar for hand correction.
+joints, or streams it live to a VMC receiver (`--vmc HOST:PORT`, vmc/send.py). `--write-map` saves the
+automatic map as JSON next to the avatar for hand correction.
 """
 from __future__ import annotations
 
@@ -23,6 +24,9 @@ def add_avatar_parser(subparsers) -> argparse.ArgumentParser:
     p.add_argument("avatar", help="rigged humanoid: .glb, .gltf or .vrm")
     p.add_argument("--motion", help="motion: .bvh, .kinetre.jsonl or a video")
     p.add_argument("-o", "--output", help=f"output: {' '.join(OUTPUTS)}")
+    p.add_argument("--vmc", default=None, metavar="HOST:PORT",
+                   help="stream the take in real time to a VMC receiver (VSeeFace, Warudo...; port 39539 by "
+                        "default) instead of writing a file")
     p.add_argument("--map", default=None, metavar="JSON",
                    help="bone map to use (default: AVATAR.kinetre-map.json next to the avatar when present)")
     p.add_argument("--write-map", nargs="?", const="", default=None, metavar="JSON",
@@ -61,8 +65,10 @@ def cmd_avatar(args) -> int:
     t0 = time.perf_counter()
     if args.motion is None and args.write_map is None:
         raise UsageError("kinetre avatar needs --motion (and -o), or --write-map")
-    if args.motion is not None and not args.output:
-        raise UsageError("kinetre avatar --motion needs -o OUTPUT")
+    if args.motion is not None and not args.output and args.vmc is None:
+        raise UsageError("kinetre avatar --motion needs -o OUTPUT or --vmc HOST:PORT")
+    if args.vmc is not None and args.output:
+        raise UsageError("kinetre avatar: --vmc streams the take instead of writing it; give -o or --vmc")
     out_ext = _ext(args.output, OUTPUTS) if args.output else None
     if args.map is not None and not os.path.exists(args.map):
         raise UsageError(f"{args.map}: no such bone map")
@@ -88,6 +94,18 @@ def cmd_avatar(args) -> int:
         take = take.slice(0, max(1, args.max_frames))
     plan = plan_retarget(avatar, bonemap)
     motion = retarget(plan, take.positions, take.tracked)
+    if args.vmc is not None:
+        from ..vmc.send import VmcSender, parse_address, vmc_frames
+        host, port = parse_address(args.vmc)
+        frames = vmc_frames(plan, bonemap, motion)
+        sender = VmcSender(host, port)
+        say(f"streaming {len(take)} frames at {take.fps:g} fps to VMC {host}:{port} ({len(frames.bones)} bones)")
+        try:
+            sender.stream(frames, take.fps)
+        finally:
+            sender.close()
+        say(f"sent {sender.sent} VMC frames from {args.motion} ({time.perf_counter() - t0:.1f} s)")
+        return 0
     if out_ext in (".glb", ".gltf"):
         from .export import write_avatar_gltf
         write_avatar_gltf(args.output, avatar, motion, take.fps)
