@@ -163,6 +163,8 @@ def plan_retarget(avatar: Avatar, bonemap: BoneMap) -> RetargetPlan:
     rest_aim = np.zeros((n, 3))
     for kj, j in m.items():
         child = _FIRST_CHILD.get(kj)
+        while child is not None and child not in m:   # a joint the avatar lacks (no elbow): aim past it
+            child = _FIRST_CHILD.get(child)
         if j == root or child not in m or not _descends(parents, m[child], j):
             continue
         d = p[m[child]] - p[j]
@@ -171,14 +173,22 @@ def plan_retarget(avatar: Avatar, bonemap: BoneMap) -> RetargetPlan:
         aim_from[j], aim_to[j], rest_aim[j] = _K[kj], _K[child], d / np.linalg.norm(d)
         shoulders = "ShoulderLeft" in m and "ShoulderRight" in m
         twist[j] = shoulders and (kj == "Spine" or (kj == "ShoulderCenter" and _descends(parents, m["ShoulderLeft"], j)))
-    sh = p[m["ShoulderRight"]] - p[m["ShoulderLeft"]]
-    frame = _torso(p[m["ShoulderCenter"]] - p[root], (p[m["HipRight"]] - p[m["HipLeft"]]) + sh)
+    # the torso frame from what maps: a chibi without elbows still has shoulders, one without a neck a head
+    side = np.zeros(3)
+    for a, b in (("ShoulderLeft", "ShoulderRight"), ("HipLeft", "HipRight")):
+        if a in m and b in m:
+            side = side + p[m[b]] - p[m[a]]
+    sh = p[m["ShoulderRight"]] - p[m["ShoulderLeft"]] if "ShoulderLeft" in m and "ShoulderRight" in m else side
+    top = m["ShoulderCenter"] if "ShoulderCenter" in m else m["Head"]
+    frame = _torso(p[top] - p[root], side)
     f = bonemap.facing
     yaw = np.arctan2(f[0], f[2])
     c, s = np.cos(yaw), np.sin(yaw)
     align = np.array([[c, 0.0, s], [0.0, 1.0, 0.0], [-s, 0.0, c]])
     legs = [np.linalg.norm(p[m[f"Hip{x}"]] - p[m[f"Knee{x}"]]) + np.linalg.norm(p[m[f"Knee{x}"]] - p[m[f"Ankle{x}"]])
-            for x in ("Left", "Right")]
+            for x in ("Left", "Right") if all(f"{k}{x}" in m for k in ("Hip", "Knee", "Ankle"))]
+    if not legs:                                      # no whole leg: the hip centre's height stands for it
+        legs = [max(float(p[root, 1] - p[:, 1].min()), 1e-9)]
     # a joint's glTF parent world = its nearest joint ancestor's world x the fixed rest offset between them
     fixed = np.tile(np.eye(4), (n, 1, 1))
     for j, node in enumerate(avatar.joints):

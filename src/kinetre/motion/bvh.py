@@ -20,6 +20,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import BadMotionError
+from ..skeleton.humanoid_map import kinect_frames, take_map
 from ..skeleton.models import KINECT20, SkeletonModel
 from .take import Take
 
@@ -335,86 +336,27 @@ def detect_unit(size: float) -> tuple[float, str]:
     return HUMAN_HEIGHT / size, f"normalised to {HUMAN_HEIGHT} m"
 
 
-def _key(name: str) -> str:
-    """Comparable joint name: no namespace ("mixamorig:"), lower case, letters and digits only."""
-    return re.sub(r"[^a-z0-9]", "", name.rsplit(":", 1)[-1].lower())
+def kinect_map(names: tuple[str, ...], parents: tuple[int, ...],
+               rest: np.ndarray | None = None) -> tuple[np.ndarray, dict] | None:
+    """The linear map from a hierarchy's joints to Kinect-20 (`kinetre.skeleton.humanoid_map`), or None
+    when the skeleton is not a humanoid.
 
-
-# Kinect joint -> file joint names, best first (after _key): Kinect-20 itself (our BVH export), then
-# Mixamo, CMU, MocapBank and generic names. "{s}" is "left"/"right", "{c}" is "l"/"r".
-_CANDIDATES = {
-    "HipCenter": ["hipcenter", "hips", "hip", "pelvis", "root"],
-    "Spine": ["spine", "chest", "spine1", "lowerback", "torso"],
-    "ShoulderCenter": ["shouldercenter", "neck", "neck1", "neckbase", "spine3", "chest2", "upperchest", "spine2"],
-    "Head": ["head", "headtopend"],
-    "Shoulder": ["shoulder{s}", "{s}arm", "{s}upperarm", "{c}shoulder", "{s}shoulder", "upperarm{c}", "{c}uparm"],
-    "Elbow": ["elbow{s}", "{s}forearm", "{s}lowerarm", "{c}elbow", "{s}elbow", "lowerarm{c}", "{c}forearm"],
-    "Wrist": ["wrist{s}", "{s}hand", "{c}wrist", "{s}wrist", "hand{c}", "{c}hand"],
-    "Hand": ["hand{s}", "{s}handmiddle1", "{s}fingerbase", "{s}handindex1", "{s}handend", "{s}wristend",
-             "{c}handend"],
-    "Hip": ["hip{s}", "{s}upleg", "{s}thigh", "{s}upperleg", "{c}thigh", "{c}hip", "{s}hip", "upperleg{c}"],
-    "Knee": ["knee{s}", "{s}leg", "{s}shin", "{s}lowerleg", "{c}knee", "{s}knee", "{c}shin", "lowerleg{c}"],
-    "Ankle": ["ankle{s}", "{s}foot", "{c}ankle", "{s}ankle", "foot{c}", "{c}foot"],
-    "Foot": ["foot{s}", "{s}toebase", "{s}toe", "{c}toe", "{s}toes", "{s}footend", "{s}ankleend", "toe{c}"],
-}
-# Must be found by name; the others may be derived from their neighbours.
-CORE = ("HipCenter", "ShoulderCenter", "Head", "ShoulderLeft", "ElbowLeft", "WristLeft", "HipLeft",
-        "KneeLeft", "AnkleLeft", "ShoulderRight", "ElbowRight", "WristRight", "HipRight", "KneeRight",
-        "AnkleRight")
-
-
-def _candidates(kinect_joint: str) -> list[str]:
-    for side in ("Left", "Right"):
-        if kinect_joint.endswith(side):
-            s = side.lower()
-            return [c.format(s=s, c=s[0]) for c in _CANDIDATES[kinect_joint[:-len(side)]]]
-    return _CANDIDATES[kinect_joint]
-
-
-def kinect_map(names: tuple[str, ...], parents: tuple[int, ...]) -> tuple[np.ndarray, dict] | None:
-    """The linear map from a hierarchy's joints to Kinect-20, or None if a core joint is missing.
+    Parameters
+    ----------
+    rest : (J, 3) float, optional
+        Rest positions (topology's and geometry's evidence, the upright check); without them names and
+        topology alone decide.
 
     Returns
     -------
     weights : (20, J) float64
-        Kinect positions = weights @ file positions (a selection, or a blend for derived joints).
+        Kinect positions = weights @ file positions (a selection, or a blend for derived joints); rows of
+        joints that do not map are zero.
     drivers : dict
         Kinect joint -> the file joint(s) it comes from (for `kinetre info`).
     """
-    keys = [_key(n) for n in names]
-    found: dict[str, int] = {}
-    for kj in KINECT20.joints:
-        for c in _candidates(kj):
-            if c in keys and keys.index(c) not in found.values():
-                found[kj] = keys.index(c)
-                break
-    if any(k not in found for k in CORE):
-        return None
-    w = np.zeros((len(KINECT20.joints), len(names)))
-    drivers = {}
-    for kj, j in found.items():
-        w[KINECT20.index(kj), j] = 1.0
-        drivers[kj] = names[j]
-    hc, sc = found["HipCenter"], found["ShoulderCenter"]
-    if "Spine" not in found:  # a quarter of the way up the torso, as for MediaPipe (SPEC §3.1)
-        w[KINECT20.index("Spine"), hc] += 0.75
-        w[KINECT20.index("Spine"), sc] += 0.25
-        drivers["Spine"] = f"0.75 {names[hc]} + 0.25 {names[sc]}"
-    children = {j: [c for c, p in enumerate(parents) if p == j] for j in range(len(names))}
-    for side in ("Left", "Right"):
-        for end, mid, base in ((f"Hand{side}", f"Wrist{side}", f"Elbow{side}"),
-                               (f"Foot{side}", f"Ankle{side}", f"Knee{side}")):
-            if end in found:
-                continue
-            kids = children[found[mid]]
-            if kids:  # the wrist's (ankle's) first child, e.g. its End Site
-                w[KINECT20.index(end), kids[0]] = 1.0
-                drivers[end] = names[kids[0]]
-            else:  # extend the forearm (shin) by a quarter
-                w[KINECT20.index(end), found[mid]] += 1.25
-                w[KINECT20.index(end), found[base]] -= 0.25
-                drivers[end] = f"1.25 {names[found[mid]]} - 0.25 {names[found[base]]}"
-    return w, drivers
+    hmap = take_map(names, parents, rest)
+    return None if hmap is None else (hmap.weights(), hmap.drivers())
 
 
 def up_rotation(up: np.ndarray) -> np.ndarray:
@@ -444,9 +386,10 @@ def load_bvh(path: str | os.PathLike, scale: float | None = None, as_kinect: boo
     scale : float, optional
         Metres per file unit; by default guessed from the skeleton's size (`detect_unit`).
     as_kinect : bool
-        Map the skeleton to Kinect-20 when its names cover the core joints (Mixamo, CMU, MocapBank and
-        generic names); otherwise, or when False, keep the file's own hierarchy (End Sites included) as
-        a generic SkeletonModel named "bvh:<file stem>" (an animal drives the mesh by its own bones).
+        Map a humanoid skeleton to Kinect-20 (`kinetre.skeleton.humanoid_map`: names, topology, rest-pose
+        geometry; Kinect joints it lacks are derived or untracked); otherwise, or when False, keep the
+        file's own hierarchy (End Sites included) as a generic SkeletonModel named "bvh:<file stem>" (an
+        animal drives the mesh by its own bones).
 
     Notes
     -----
@@ -475,16 +418,18 @@ def load_bvh(path: str | os.PathLike, scale: float | None = None, as_kinect: boo
     # in chunks of frames: the per-joint world rotations of a long clip would not fit in memory at once
     positions = np.concatenate([forward_kinematics(clip, slice(i, i + _CHUNK))
                                 for i in range(0, len(clip.motion), _CHUNK)]) * scale
-    mapping = kinect_map(clip.names, clip.parents) if as_kinect else None
-    if mapping is not None:
-        weights, _ = mapping
-        positions = np.einsum("kj,tjc->tkc", weights, positions)
-        model = KINECT20
-        rest = weights @ rest_positions(clip)
-        up = rest[KINECT20.index("Head")] - rest[KINECT20.index("HipCenter")]
-        positions = positions @ up_rotation(up).T
-    else:
-        stem = os.path.basename(path).rsplit(".", 1)[0]
-        model = SkeletonModel(f"bvh:{stem}", clip.names, clip.parents)
-    tracked = np.ones(positions.shape[:2], dtype=bool)
-    return Take(model, positions, tracked, clip.fps, path)
+    rest = rest_positions(clip) * scale
+    hmap = take_map(clip.names, clip.parents, rest) if as_kinect else None
+    if hmap is not None:
+        positions, tracked = kinect_frames(hmap, positions)
+        return Take(KINECT20, positions @ upright(hmap, rest).T, tracked, clip.fps, path)
+    stem = os.path.basename(path).rsplit(".", 1)[0]
+    model = SkeletonModel(f"bvh:{stem}", clip.names, clip.parents)
+    return Take(model, positions, np.ones(positions.shape[:2], dtype=bool), clip.fps, path)
+
+
+def upright(hmap, rest: np.ndarray) -> np.ndarray:
+    """(3, 3) the quarter turn taking a mapped human's rest hips -> head (else shoulder centre) to +Y."""
+    kinect, _ = kinect_frames(hmap, rest)
+    top = "Head" if "Head" in hmap.joints else "ShoulderCenter"
+    return up_rotation(kinect[KINECT20.index(top)] - kinect[KINECT20.index("HipCenter")])

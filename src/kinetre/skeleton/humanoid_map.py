@@ -1,0 +1,633 @@
+"""Which joint of any skeleton plays which Kinect-20 joint: the one mapper for BVH files, glTF/VRM animations,
+recorded takes and rigged avatars.
+
+A skeleton is given as joint names, parents and a rest pose (`map_humanoid`). The map is found in order:
+
+1. a saved table (`fixed`, e.g. the avatar's JSON map) and the VRM humanoid bones, when given;
+2. names: exact spellings (Kinect, Mixamo with or without `mixamorig:`, CMU, MocapBank), then the words of
+   the name with side and noise removed, which covers Blender (`.L`/`.R`, `_l`/`_r`), Unreal (pelvis,
+   spine_01, upperarm_l, lowerarm_l, hand_l, thigh_l, calf_l, foot_l, ball_l, neck_01), DAZ/Genesis
+   (lThighBend, lShin, lShldrBend, lForearmBend, abdomenLower, chestUpper), Rokoko, VRoid (J_Bip_L_UpperArm),
+   OpenNI and MediaPipe; numbered limb chains ("arm_joint_L_1..3") are assigned in order along the limb;
+   twist, IK, pole and roll helpers never match;
+3. topology: the pelvis is where the legs leave (their common ancestor), the shoulder centre is where the
+   arm chains branch off the spine, the head continues the spine above it, a hand (foot) is the wrist's
+   (ankle's) child;
+4. bind-pose geometry, for what names and topology leave open: the pelvis is the shallowest joint with
+   two child chains reaching down and one reaching up; up that chain the chest is the first joint with two
+   chains reaching out sideways; along a limb the two longest consecutive bones are the upper and lower
+   limb; left and right come from the facing (the feet's ankle -> toe, else +Z).
+
+Kinect-20 joints the skeleton lacks are derived where the paper's skeleton needs them: the Spine a quarter
+of the way from the hip centre to the shoulder centre, a missing hip (shoulder) centre halfway between the
+two hips (shoulders), a Hand (Foot) by extending the forearm (shin) by a quarter. What neither maps nor can
+be derived is reported (`HumanoidMap.missing`) and left untracked; a skeleton is refused as a humanoid only
+when it has neither a root (hip centre) nor a limb chain (`HumanoidMap.drivable`).
+"""
+from __future__ import annotations
+
+import re
+from dataclasses import dataclass
+
+import numpy as np
+
+from .models import KINECT20
+
+UP = np.array([0.0, 1.0, 0.0])
+TORSO = ("HipCenter", "Spine", "ShoulderCenter", "Head")
+# The chains along a limb, from the body out.
+LIMBS = {"arm": ("Shoulder", "Elbow", "Wrist", "Hand"), "leg": ("Hip", "Knee", "Ankle", "Foot")}
+# Needed to drive a whole body; the others are used when present.
+REQUIRED = ("HipCenter", "ShoulderCenter", "ShoulderLeft", "ElbowLeft", "WristLeft", "ShoulderRight",
+            "ElbowRight", "WristRight", "HipLeft", "KneeLeft", "AnkleLeft", "HipRight", "KneeRight", "AnkleRight")
+
+VRM_BONES = {"hips": "HipCenter", "spine": "Spine", "neck": "ShoulderCenter", "head": "Head",
+             "leftUpperArm": "ShoulderLeft", "leftLowerArm": "ElbowLeft", "leftHand": "WristLeft",
+             "leftMiddleProximal": "HandLeft", "rightUpperArm": "ShoulderRight", "rightLowerArm": "ElbowRight",
+             "rightHand": "WristRight", "rightMiddleProximal": "HandRight", "leftUpperLeg": "HipLeft",
+             "leftLowerLeg": "KneeLeft", "leftFoot": "AnkleLeft", "leftToes": "FootLeft",
+             "rightUpperLeg": "HipRight", "rightLowerLeg": "KneeRight", "rightFoot": "AnkleRight",
+             "rightToes": "FootRight"}
+
+# Exact spellings (after `name_key`), best first: Kinect-20 itself, then Mixamo, CMU, MocapBank and generic
+# names. "{s}" is "left"/"right", "{c}" is "l"/"r".
+_EXACT = {
+    "HipCenter": ["hipcenter", "hips", "hip", "pelvis", "spinebase", "root"],
+    "Spine": ["spine", "spinemid", "chest", "spine1", "lowerback", "torso"],
+    "ShoulderCenter": ["shouldercenter", "spineshoulder", "neck", "neck1", "neckbase"],
+    "Head": ["head", "headtopend"],
+    "Shoulder": ["shoulder{s}", "{s}arm", "{s}upperarm", "{c}shoulder", "{s}shoulder", "upperarm{c}", "{c}uparm"],
+    "Elbow": ["elbow{s}", "{s}forearm", "{s}lowerarm", "{c}elbow", "{s}elbow", "lowerarm{c}", "{c}forearm"],
+    "Wrist": ["wrist{s}", "{s}hand", "{c}wrist", "{s}wrist", "hand{c}", "{c}hand"],
+    "Hand": ["hand{s}", "handtip{s}", "{s}handmiddle1", "{s}fingerbase", "{s}handindex1", "{s}handend",
+             "{s}wristend", "{c}handend"],
+    "Hip": ["hip{s}", "{s}upleg", "{s}thigh", "{s}upperleg", "{c}thigh", "{c}hip", "{s}hip", "upperleg{c}"],
+    "Knee": ["knee{s}", "{s}leg", "{s}shin", "{s}lowerleg", "{c}knee", "{s}knee", "{c}shin", "lowerleg{c}"],
+    "Ankle": ["ankle{s}", "{s}foot", "{c}ankle", "{s}ankle", "foot{c}", "{c}foot"],
+    "Foot": ["foot{s}", "{s}toebase", "{s}toe", "{c}toe", "{s}toes", "{s}footend", "{s}ankleend", "toe{c}"],
+}
+# Words of a name (side, digits and noise removed, joined), best first per Kinect part.
+_WORDS = {
+    "HipCenter": ("hipcenter", "spinebase", "hips", "pelvis", "hip"),
+    "Spine": ("spine", "spinemid", "lowerback", "abdomen", "abdomenlower", "abdomenupper", "chest", "chestlower"),
+    "ShoulderCenter": ("shouldercenter", "spineshoulder", "neck", "necklower", "neckbase"),
+    "Head": ("head",),
+    "Shoulder": ("upperarm", "uparm", "arm", "shldrbend", "shldr", "shoulder"),
+    "Elbow": ("forearm", "lowerarm", "forearmbend", "elbow"),
+    "Wrist": ("wrist", "hand"),
+    "Hand": ("handtip", "handend", "wristend", "hand", "index"),
+    "Hip": ("upperleg", "upleg", "thigh", "thighbend", "hip"),
+    "Knee": ("lowerleg", "shin", "calf", "knee", "leg"),
+    "Ankle": ("ankle", "foot"),
+    "Foot": ("toebase", "toe", "toes", "ball", "footindex", "footend", "ankleend", "foot"),
+}
+_NOISE = {"mixamorig", "j", "bip", "b", "def", "org", "mch", "joint", "jnt", "bone", "c", "cc", "base", "bn", "sk"}
+_HELPERS = {"twist", "ik", "pole", "target", "roll", "ctrl", "helper", "collar", "clavicle", "eye", "jaw",
+            "thumb", "pinky", "ring", "middle", "heel", "tail", "ear", "mouth"}
+_SIDES = {"left": "Left", "l": "Left", "right": "Right", "r": "Right"}
+
+
+@dataclass(frozen=True, eq=False)
+class HumanoidMap:
+    """Kinect-20 joint -> source joint, how each was found, what is derived and what is missing.
+
+    Attributes
+    ----------
+    names : tuple of str, (J,)
+        The source skeleton's joint names.
+    joints : dict str -> int
+        Kinect joint -> source joint index, for joints the skeleton has.
+    how : dict str -> str
+        "file", "vrm", "name", "topology" or "geometry" per mapped joint.
+    derived : dict str -> tuple of (int, float)
+        Kinect joint -> (source joint, weight) pairs blending its position from the source's joints.
+    facing : (3,) float64
+        Horizontal unit vector the skeleton faces in its rest pose.
+    """
+
+    names: tuple[str, ...]
+    joints: dict
+    how: dict
+    derived: dict
+    facing: np.ndarray
+
+    @property
+    def missing(self) -> tuple[str, ...]:
+        """Kinect joints of `REQUIRED` the skeleton does not have (derived ones do not count)."""
+        return tuple(j for j in REQUIRED if j not in self.joints)
+
+    @property
+    def unmapped(self) -> tuple[str, ...]:
+        """Kinect joints neither mapped nor derived: left untracked."""
+        return tuple(j for j in KINECT20.joints if j not in self.joints and j not in self.derived)
+
+    @property
+    def unused(self) -> tuple[str, ...]:
+        """Source joints no Kinect joint reads."""
+        used = set(self.joints.values()) | {j for pairs in self.derived.values() for j, _ in pairs}
+        return tuple(n for j, n in enumerate(self.names) if j not in used)
+
+    @property
+    def limbs(self) -> tuple[str, ...]:
+        """The limbs ("arm left", "leg right", ...) with at least two of their joints mapped."""
+        out = []
+        for limb, parts in LIMBS.items():
+            for side in ("Left", "Right"):
+                if sum(p + side in self.joints for p in parts) >= 2:
+                    out.append(f"{limb} {side.lower()}")
+        return tuple(out)
+
+    @property
+    def drivable(self) -> bool:
+        """A root or a limb chain maps: enough to drive what maps."""
+        return "HipCenter" in self.joints or bool(self.limbs)
+
+    def weights(self) -> np.ndarray:
+        """(20, J) Kinect positions = weights @ source positions; rows of `unmapped` joints are zero."""
+        w = np.zeros((len(KINECT20.joints), len(self.names)))
+        for kj, j in self.joints.items():
+            w[KINECT20.index(kj), j] = 1.0
+        for kj, pairs in self.derived.items():
+            for j, a in pairs:
+                w[KINECT20.index(kj), j] += a
+        return w
+
+    def drivers(self) -> dict:
+        """Kinect joint -> the source joint(s) it comes from, as text (for `kinetre info`)."""
+        out = {}
+        for kj in KINECT20.joints:
+            if kj in self.joints:
+                out[kj] = self.names[self.joints[kj]]
+            elif kj in self.derived:
+                out[kj] = " + ".join(f"{a:g} {self.names[j]}" for j, a in self.derived[kj]).replace("+ -", "- ")
+        return out
+
+    def describe(self) -> list[str]:
+        """Lines: each Kinect joint <- source joint (how), then what is derived and what does not map."""
+        lines = [f"{kj} <- {self.names[self.joints[kj]]} ({self.how[kj]})" for kj in KINECT20.joints
+                 if kj in self.joints]
+        d = self.drivers()
+        lines += [f"{kj} <- {d[kj]} (derived)" for kj in KINECT20.joints if kj in self.derived]
+        if self.unmapped:
+            lines.append(f"not mapped (untracked): {', '.join(self.unmapped)}")
+        return lines
+
+
+def name_key(name: str) -> str:
+    """Comparable joint name: no namespace ("mixamorig:"), lower case, letters and digits only.
+
+    >>> name_key("mixamorig:LeftArm")
+    'leftarm'
+    """
+    return re.sub(r"[^a-z0-9]", "", name.rsplit(":", 1)[-1].lower())
+
+
+def name_words(name: str) -> tuple[str, str, tuple[int, ...]]:
+    """(side "Left"/"Right"/"", the words joined without side and noise, the numbers) of a joint name;
+    a helper joint (twist, IK, pole, finger...) gives the word "".
+
+    >>> name_words("upperarm_twist_01_l")
+    ('Left', '', (1,))
+    >>> name_words("lShldrBend"), name_words("thigh.R"), name_words("J_Bip_L_UpperArm")
+    (('Left', 'shldrbend', ()), ('Right', 'thigh', ()), ('Left', 'upperarm', ()))
+    """
+    toks = [t.lower() for t in re.findall(r"[A-Z]+(?![a-z])|[A-Z]?[a-z]+|\d+", name.rsplit(":", 1)[-1])]
+    sides = {_SIDES[t] for t in toks if t in _SIDES}
+    side = sides.pop() if len(sides) == 1 else ""
+    digits = tuple(int(t) for t in toks if t.isdigit())
+    if _HELPERS & set(toks):
+        return side, "", digits
+    return side, "".join(t for t in toks if not t.isdigit() and t not in _NOISE and t not in _SIDES), digits
+
+
+def map_humanoid(names, parents, rest: np.ndarray, vrm: dict | None = None,
+                 fixed: dict | None = None) -> HumanoidMap:
+    """Map a skeleton to Kinect-20 (the order of the module docstring).
+
+    Parameters
+    ----------
+    names : sequence of str, (J,)
+    parents : sequence of int, (J,)
+        Parent joint per joint, -1 for a root.
+    rest : (J, 3) float
+        Joint positions in the rest (bind) pose, +Y up.
+    vrm : dict, optional
+        VRM humanoid bone name -> joint index.
+    fixed : dict, optional
+        Kinect joint -> joint index that wins over everything (a saved map).
+    """
+    names = tuple(names)
+    parents = [int(p) for p in parents]
+    p = np.asarray(rest, dtype=np.float64).reshape(len(names), 3)
+    found: dict[str, int] = {}
+    how: dict[str, str] = {}
+
+    def put(kj, j, kind):
+        if kj not in found and j not in found.values():
+            found[kj], how[kj] = int(j), kind
+
+    for kj, j in (fixed or {}).items():
+        found[kj], how[kj] = int(j), "file"
+    for bone, kj in VRM_BONES.items():
+        if vrm and bone in vrm:
+            put(kj, vrm[bone], "vrm")
+    if not vrm:
+        for kj, j in _by_name(names, parents).items():
+            put(kj, j, "name")
+    _by_topology(found, how, parents, p)
+    if any(j not in found for j in REQUIRED) or "Spine" not in found or "Head" not in found:
+        for kj, j in _by_geometry(p, parents).items():
+            put(kj, j, "geometry")
+    derived = _derive(found, parents, names)
+    return HumanoidMap(names, found, how, derived, _facing(p, found))
+
+
+def take_map(names, parents, rest: np.ndarray | None, fixed: dict | None = None) -> HumanoidMap | None:
+    """The map a motion source is turned into Kinect-20 by, or None when its skeleton is not a humanoid
+    (no hip centre, mapped or derived; no limb chain; or legs that do not continue its spine:
+    an animal then drives a mesh by its own bones). Without `rest`, names and topology alone decide."""
+    hmap = map_humanoid(names, parents, np.zeros((len(names), 3)) if rest is None else rest, fixed=fixed)
+    if not hmap.limbs or "HipCenter" not in hmap.joints and "HipCenter" not in hmap.derived:
+        return None
+    if rest is not None and upright_problems(hmap, rest, up=None):
+        return None
+    return hmap
+
+
+def kinect_frames(hmap: HumanoidMap, positions: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Source joint positions (..., J, 3) -> Kinect-20 (..., 20, 3) and tracked (..., 20).
+
+    A Kinect joint that does not map sits on its nearest mapped ancestor (finite, so bounds and fits stay
+    sound) and is untracked.
+    """
+    positions = np.asarray(positions, dtype=np.float64)
+    out = np.einsum("kj,...jc->...kc", hmap.weights(), positions)
+    tracked = np.ones(out.shape[:-1], dtype=bool)
+    have = set(hmap.joints) | set(hmap.derived)
+    for k, kj in enumerate(KINECT20.joints):
+        if kj in have:
+            continue
+        tracked[..., k] = False
+        a = KINECT20.parents[k]
+        while a >= 0 and KINECT20.joints[a] not in have:
+            a = KINECT20.parents[a]
+        if a >= 0:
+            out[..., k, :] = out[..., a, :]
+        else:                                        # nothing above maps: the first mapped joint stands in
+            first = next(i for i, name in enumerate(KINECT20.joints) if name in have)
+            out[..., k, :] = out[..., first, :]
+    return out, tracked
+
+
+def upright_problems(hmap: HumanoidMap, rest: np.ndarray, up: np.ndarray | None = UP) -> list[str]:
+    """Why the rest pose is not an upright biped (empty when it is).
+
+    With `up` (an avatar, whose file says +Y is up): the torso (hips -> shoulder centre, else head) within
+    45 degrees of `up` and both legs (hip -> ankle, else knee) within 60 degrees of down. With `up=None` (a
+    motion file whose up axis is not trusted): the legs run opposite to the torso within 60 degrees, which
+    a quadruped's (legs at right angles to a level spine) do not.
+    """
+    p, m = np.asarray(rest, dtype=np.float64), hmap.joints
+    top = next((k for k in ("ShoulderCenter", "Head") if k in m), None)
+    if "HipCenter" not in m or top is None:
+        return []
+
+    def direction(a, b):
+        v = p[m[b]] - p[m[a]]
+        n = np.linalg.norm(v)
+        return None if n < 1e-12 else v / n
+
+    def angle(u, v):
+        return float(np.degrees(np.arccos(np.clip(u @ v, -1.0, 1.0))))
+
+    torso = direction("HipCenter", top)
+    legs = []
+    for s in ("Left", "Right"):
+        end = next((k + s for k in ("Ankle", "Knee") if k + s in m), None)
+        if f"Hip{s}" in m and end is not None and (d := direction(f"Hip{s}", end)) is not None:
+            legs.append(d)
+    problems = []
+    name = lambda k: hmap.names[m[k]]  # noqa: E731
+    if torso is None:
+        return [f"its spine ({name('HipCenter')} -> {name(top)}) has no length"]
+    if up is not None:
+        if angle(torso, up) > 45:
+            problems.append(f"its spine ({name('HipCenter')} -> {name(top)}) is {angle(torso, up):.0f} degrees "
+                            f"from vertical")
+        if legs and max(angle(leg, -up) for leg in legs) > 60:
+            problems.append(f"its legs point {max(angle(leg, -up) for leg in legs):.0f} degrees away from down")
+    elif legs and max(angle(leg, -torso) for leg in legs) > 60:
+        problems.append(f"its legs are {max(angle(leg, -torso) for leg in legs):.0f} degrees off the line of its "
+                        f"spine")
+    return problems
+
+
+def parse_table(table: dict, names, where: str, error=ValueError) -> dict:
+    """Kinect joint -> joint index from a saved table of joint names, "#index" strings or ints.
+
+    Raises `error` naming `where` on an unknown Kinect joint, a name that is not one joint's, or an index
+    out of range.
+    """
+    names = list(names)
+    out = {}
+    for kj, ref in table.items():
+        if kj not in KINECT20.joints:
+            raise error(f"{where}: {kj!r} is not a Kinect-20 joint ({', '.join(KINECT20.joints)})")
+        if ref is None or ref == "":
+            continue
+        if isinstance(ref, int) or (isinstance(ref, str) and ref.startswith("#") and ref[1:].isdigit()):
+            j = int(ref if isinstance(ref, int) else ref[1:])
+            if not 0 <= j < len(names):
+                raise error(f"{where}: {kj}: joint #{j} is outside the skeleton's {len(names)} joints")
+        elif isinstance(ref, str) and names.count(ref) == 1:
+            j = names.index(ref)
+        else:
+            raise error(f"{where}: {kj}: the skeleton has no single joint named {ref!r}")
+        out[kj] = j
+    return out
+
+
+def table_of(joints: dict, names) -> dict:
+    """The saveable form of a map: Kinect joint -> joint name where unique, else "#index"."""
+    names = list(names)
+    return {kj: names[j] if names.count(names[j]) == 1 else f"#{j}"
+            for kj, j in sorted(joints.items(), key=lambda kv: KINECT20.index(kv[0]))}
+
+
+# ---- by name ------------------------------------------------------------------------------------------
+
+def _kinect_part(kj: str) -> tuple[str, str]:
+    for side in ("Left", "Right"):
+        if kj.endswith(side):
+            return kj[:-len(side)], side
+    return kj, ""
+
+
+def _by_name(names, parents) -> dict:
+    depth = _depths(parents)
+    keys = [name_key(n) for n in names]
+    found: dict[str, int] = {}
+    for kj in KINECT20.joints:                       # exact spellings first
+        part, side = _kinect_part(kj)
+        s = side.lower()
+        for c in _EXACT[part]:
+            c = c.format(s=s, c=s[:1])
+            hits = [j for j, k in enumerate(keys) if k == c and j not in found.values()]
+            if hits:
+                found[kj] = min(hits, key=lambda j: depth[j])
+                break
+    words = [name_words(n) for n in names]
+    chains: dict[tuple[str, str], list[tuple[tuple, int]]] = {}
+    for j, (side, word, digits) in enumerate(words):
+        if side and word in LIMBS and digits:        # "arm_joint_L_1", "b_LeftLeg01_015": in order along it
+            chains.setdefault((side, word), []).append((digits, j))
+    for (side, limb), members in chains.items():
+        for part, (_, j) in zip(LIMBS[limb], sorted(members)):
+            if part + side not in found and j not in found.values():
+                found[part + side] = j
+    chained = {j for members in chains.values() for _, j in members}
+    # torso and inner limb joints before the ends, so "hand" is the wrist unless a "wrist" exists
+    order = [kj for kj in KINECT20.joints if not kj.startswith(("Hand", "Foot"))] + \
+            [kj for kj in KINECT20.joints if kj.startswith(("Hand", "Foot"))]
+    for kj in order:
+        if kj in found:
+            continue
+        part, side = _kinect_part(kj)
+        best = None
+        for j, (s, word, digits) in enumerate(words):
+            if j in found.values() or j in chained or s != side or word not in _WORDS[part]:
+                continue
+            if part in ("Hand", "Foot"):             # an end hangs below its wrist (ankle), when known
+                inner = ("Wrist" if part == "Hand" else "Ankle") + side
+                if inner in found and not _is_ancestor(parents, found[inner], j):
+                    continue
+            score = (_WORDS[part].index(word), digits[:1] or (0,), depth[j])
+            if best is None or score < best[0]:
+                best = (score, j)
+        if best is not None:
+            found[kj] = best[1]
+    return found
+
+
+# ---- by topology --------------------------------------------------------------------------------------
+
+def _by_topology(found, how, parents, p) -> None:
+    """Pelvis = the legs' common ancestor, shoulder centre = the arms' branch point, head above it,
+    hands and feet = the wrist's and ankle's children (only where no saved map decided)."""
+    children = _children(parents)
+
+    def claim(kj, j):
+        other = next((k for k, v in found.items() if v == j and k != kj), None)
+        if other is not None:
+            if how[other] == "file":
+                return
+            del found[other], how[other]             # the joint plays the part topology gives it
+        found[kj], how[kj] = j, "topology"
+
+    if "HipLeft" in found and "HipRight" in found and how.get("HipCenter") != "file":
+        lca = _common_ancestor(parents, found["HipLeft"], found["HipRight"])
+        hc = found.get("HipCenter", -1)
+        if lca >= 0 and hc != lca and not _is_ancestor(parents, hc, found["HipLeft"]):
+            found.pop("HipCenter", None)
+            claim("HipCenter", lca)
+    if "ShoulderLeft" in found and "ShoulderRight" in found and "ShoulderCenter" not in found:
+        lca = _common_ancestor(parents, found["ShoulderLeft"], found["ShoulderRight"])
+        if lca >= 0 and lca != found.get("HipCenter"):
+            claim("ShoulderCenter", lca)
+    if "ShoulderCenter" in found and "Head" not in found:
+        arms = {found[k] for k in ("ShoulderLeft", "ShoulderRight") if k in found}
+        up = [c for c in children[found["ShoulderCenter"]]
+              if not any(_is_ancestor(parents, c, a) for a in arms) and c not in found.values()]
+        if up:
+            j = max(up, key=lambda c: p[c, 1])
+            if children[j]:                          # a neck the name did not say: the head is above it
+                j = max(children[j], key=lambda c: p[c, 1])
+            found["Head"], how["Head"] = j, "topology"
+    for side in ("Left", "Right"):
+        for end, inner in ((f"Hand{side}", f"Wrist{side}"), (f"Foot{side}", f"Ankle{side}")):
+            if end not in found and inner in found:
+                kids = [c for c in children[found[inner]] if c not in found.values()]
+                if kids:                             # the first child, e.g. an End Site
+                    found[end], how[end] = kids[0], "topology"
+
+
+def _derive(found, parents, names) -> dict:
+    """Blends for the paper's joints the skeleton lacks (module docstring)."""
+    out: dict[str, tuple] = {}
+
+    def source(kj):
+        if kj in found:
+            return ((found[kj], 1.0),)
+        return out.get(kj)
+
+    def blend(*terms):
+        acc: dict[int, float] = {}
+        for a, pairs in terms:
+            for j, w in pairs:
+                acc[j] = acc.get(j, 0.0) + a * w
+        return tuple((j, w) for j, w in acc.items() if abs(w) > 1e-12)
+
+    for centre, a, b in (("HipCenter", "HipLeft", "HipRight"), ("ShoulderCenter", "ShoulderLeft", "ShoulderRight")):
+        if centre not in found and a in found and b in found:
+            out[centre] = blend((0.5, source(a)), (0.5, source(b)))
+    if "Spine" not in found and source("HipCenter") and source("ShoulderCenter"):
+        out["Spine"] = blend((0.75, source("HipCenter")), (0.25, source("ShoulderCenter")))
+    for side in ("Left", "Right"):
+        for end, mid, base in ((f"Hand{side}", f"Wrist{side}", f"Elbow{side}"),
+                               (f"Foot{side}", f"Ankle{side}", f"Knee{side}")):
+            if end not in found and mid in found and base in found:
+                out[end] = blend((1.25, source(mid)), (-0.25, source(base)))
+    return out
+
+
+# ---- by geometry --------------------------------------------------------------------------------------
+
+def _by_geometry(p, parents) -> dict:
+    """The structural map of the module docstring; {} when no pelvis is found."""
+    n = len(p)
+    if n < 3:
+        return {}
+    children = _children(parents)
+    subtree = [_subtree(children, j) for j in range(n)]
+    height = max(float(np.ptp(p[:, 1])), 1e-9)
+    low = np.array([p[s, 1].min() for s in subtree])
+    high = np.array([p[s, 1].max() for s in subtree])
+    depth = _depths(parents)
+    pelvis = legs = up = None
+    for j in sorted(range(n), key=lambda j: depth[j]):
+        down = [c for c in children[j] if low[c] < p[j, 1] - 0.12 * height]
+        ups = [c for c in children[j] if high[c] > p[j, 1] + 0.12 * height and c not in down]
+        if len(down) >= 2 and ups:
+            pelvis, legs = j, sorted(down, key=lambda c: low[c])[:2]
+            up = max(ups, key=lambda c: high[c])
+            break
+    if pelvis is None:
+        return {}
+
+    def reach(j, origin):
+        d = p[subtree[j]] - p[origin]
+        return float(np.hypot(d[:, 0], d[:, 2]).max())
+
+    chest, arms, neck, j = None, [], None, up
+    path = [up]
+    while True:
+        side = [c for c in children[j] if reach(c, j) > 0.15 * height]
+        if len(side) >= 2:
+            chest, arms = j, sorted(side, key=lambda c: -reach(c, j))[:2]
+            rest = [c for c in children[j] if c not in arms]
+            neck = max(rest, key=lambda c: high[c]) if rest else None
+            break
+        if not children[j]:
+            break
+        j = max(children[j], key=lambda c: high[c])
+        path.append(j)
+    leg_chains = [_follow(children, c, lambda k: -low[k]) for c in legs]
+    feet = [_limb(p, ch, LIMBS["leg"]) for ch in leg_chains]
+    toes = sum((p[f["Foot"]] - p[f["Ankle"]] for f in feet if "Foot" in f and "Ankle" in f), np.zeros(3))
+    toes[1] = 0.0
+    facing = toes / np.linalg.norm(toes) if np.linalg.norm(toes) > 1e-9 else np.array([0.0, 0.0, 1.0])
+    right = np.cross(facing, UP)
+    out = {"HipCenter": pelvis}
+    _sided(out, p, leg_chains, feet, pelvis, right)
+    if chest is None:
+        return out
+    if path[0] != chest:
+        out["Spine"] = path[0]
+    head_chain = _follow(children, neck, lambda c: high[c]) if neck is not None else []
+    out["ShoulderCenter"] = head_chain[0] if len(head_chain) >= 2 else chest
+    if head_chain:
+        out["Head"] = head_chain[1] if len(head_chain) >= 2 else head_chain[0]
+    arm_chains = [_follow(children, c, lambda k: reach(k, chest)) for c in arms]
+    _sided(out, p, arm_chains, [_limb(p, ch, LIMBS["arm"]) for ch in arm_chains], chest, right)
+    return out
+
+
+def _sided(out, p, chains, limbs, centre, right) -> None:
+    """Name two limbs Left/Right by which side of `centre` their first joint lies on."""
+    sides = [float((p[ch[0]] - p[centre]) @ right) for ch in chains]
+    for side, limb in zip(("Right", "Left") if sides[0] > sides[1] else ("Left", "Right"), limbs):
+        out.update({k + side: v for k, v in limb.items()})
+
+
+def _follow(children, start, score) -> list[int]:
+    chain, j = [start], start
+    while children[j]:
+        j = max(children[j], key=score)
+        chain.append(j)
+    return chain
+
+
+def _limb(p, chain, parts) -> dict:
+    """Upper and lower limb = the two longest consecutive bones of the chain; joints named from there."""
+    if len(chain) < 3:
+        return {}
+    bones = np.linalg.norm(np.diff(p[chain], axis=0), axis=1)
+    i = int(np.argmax(bones[:-1] + bones[1:]))
+    return {part: chain[i + k] for k, part in enumerate(parts) if i + k < len(chain)}
+
+
+def _facing(p, found) -> np.ndarray:
+    """Horizontal facing: from left -> right (hips, shoulders) when sides are known (forward = up x right),
+    else from the feet (ankle -> toe), else +Z."""
+    right = np.zeros(3)
+    for a, b in (("HipLeft", "HipRight"), ("ShoulderLeft", "ShoulderRight")):
+        if a in found and b in found:
+            right += p[found[b]] - p[found[a]]
+    right[1] = 0.0
+    if np.linalg.norm(right) > 1e-9:
+        f = np.cross(UP, right)
+        return f / np.linalg.norm(f)
+    toes = np.zeros(3)
+    for s in ("Left", "Right"):
+        if f"Ankle{s}" in found and f"Foot{s}" in found:
+            toes += p[found[f"Foot{s}"]] - p[found[f"Ankle{s}"]]
+    toes[1] = 0.0
+    if np.linalg.norm(toes) > 1e-9:
+        return toes / np.linalg.norm(toes)
+    return np.array([0.0, 0.0, 1.0])
+
+
+# ---- tree helpers -------------------------------------------------------------------------------------
+
+def _children(parents) -> list[list[int]]:
+    out = [[] for _ in parents]
+    for c, q in enumerate(parents):
+        if q >= 0:
+            out[q].append(c)
+    return out
+
+
+def _subtree(children, j) -> list[int]:
+    out, stack = [], [j]
+    while stack:
+        k = stack.pop()
+        out.append(k)
+        stack.extend(children[k])
+    return out
+
+
+def _depths(parents) -> list[int]:
+    out = []
+    for j in range(len(parents)):
+        d, k = 0, parents[j]
+        while k >= 0:
+            d, k = d + 1, parents[k]
+        out.append(d)
+    return out
+
+
+def _ancestors(parents, j) -> list[int]:
+    out = []
+    while j >= 0:
+        out.append(j)
+        j = parents[j]
+    return out
+
+
+def _is_ancestor(parents, a, j) -> bool:
+    return a >= 0 and a in _ancestors(parents, j)
+
+
+def _common_ancestor(parents, a, b) -> int:
+    above = set(_ancestors(parents, a))
+    return next((j for j in _ancestors(parents, b) if j in above), -1)
