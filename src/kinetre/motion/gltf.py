@@ -6,8 +6,7 @@ says (STEP, LINEAR with quaternion slerp on the shortest arc, CUBICSPLINE Hermit
 tangents scaled by the keyframe interval), each node's local matrix is T · R · S (or its `matrix`), and
 world matrices run down the whole node hierarchy, non-joint parents included; a joint's position is the
 translation of its world matrix. A joint's parent in the `SkeletonModel` is its nearest ancestor that is a
-joint. Human skeletons whose names cover Kinect-20's core joints (Mixamo and friends) are mapped to
-Kinect-20 as BVH files are, unless `as_kinect=False`.
+joint. Human skeletons are mapped to Kinect-20 by the skeleton mapper as BVH files are, unless `as_kinect=False`.
 
 `path#NAME` or `path#INDEX` picks the animation (`split_animation`); without it, the first one.
 """
@@ -23,7 +22,8 @@ import numpy as np
 
 from ..errors import BadMotionError
 from ..skeleton.models import KINECT20, SkeletonModel
-from .bvh import kinect_map, up_rotation
+from ..skeleton.humanoid_map import kinect_frames, take_map
+from .bvh import upright
 from .take import Take
 
 GLTF_EXTS = (".glb", ".gltf")
@@ -408,14 +408,10 @@ def load_gltf(path: str | os.PathLike, animation: str | int | None = None, fps: 
     names = _names(d.doc, nodes)
     positions = world_matrices(d, info.index, t)[:, nodes][..., :3, 3]
     source = f"{path}#{info.name}"
-    mapping = kinect_map(names, parents) if as_kinect else None
-    if mapping is not None:
-        weights, _ = mapping
-        positions = np.einsum("kj,tjc->tkc", weights, positions)
-        rest = weights @ world_matrices(d, None, np.zeros(1))[0, nodes][:, :3, 3]
-        up = rest[KINECT20.index("Head")] - rest[KINECT20.index("HipCenter")]
-        positions = positions @ up_rotation(up).T
-        model = KINECT20
-    else:
-        model = SkeletonModel(f"gltf:{Path(path).stem}", names, parents)
+    rest = world_matrices(d, None, np.zeros(1))[0, nodes][:, :3, 3]
+    hmap = take_map(names, parents, rest) if as_kinect else None
+    if hmap is not None:
+        positions, tracked = kinect_frames(hmap, positions)
+        return Take(KINECT20, positions @ upright(hmap, rest).T, tracked, float(fps), source)
+    model = SkeletonModel(f"gltf:{Path(path).stem}", names, parents)
     return Take(model, positions, np.ones(positions.shape[:2], dtype=bool), float(fps), source)
