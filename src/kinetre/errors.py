@@ -39,3 +39,7 @@ class BadFaceError(KinetreError):
 
 class BadAvatarError(KinetreError):
     """An avatar file is not a rigged humanoid glTF/VRM, or its bones cannot be mapped to a body."""
+
+
+class BadModelError(KinetreError):
+    """A tracking model file is missing, unknown, or not byte-identical to the published one."""

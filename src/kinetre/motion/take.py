@@ -30,6 +30,16 @@ class Take:
         Frames per second (frame i is at time i / fps).
     source : str
         Where the take came from (a path, "camera 0", ...).
+    people : tuple of int
+        Camera takes: the ids of everyone tracked (`positions` is one of them, the main person);
+        empty for a one-person take.
+    crowd_positions : (T, P, J, 3) float64 or None; crowd_tracked : (T, P, J) bool or None
+        Every person's joints, in the order of `people` (NaN / False where that person is not seen).
+    hands : (T, P, 2, 21, 3) float64 or None
+        MediaPipe's 21 hand landmarks of each person's left and right hand, in the take's frame
+        (metres, +Y up, the wrist at the body's wrist); NaN where the hand is not found.
+    blendshapes : (T, P, B) float64 or None; blendshape_names : tuple of B str
+        Face blendshape weights in [0, 1] (MediaPipe's ARKit-named set); NaN where the face is not found.
 
     Examples
     --------
@@ -44,6 +54,12 @@ class Take:
     tracked: np.ndarray
     fps: float
     source: str = ""
+    people: tuple[int, ...] = ()
+    crowd_positions: np.ndarray | None = None
+    crowd_tracked: np.ndarray | None = None
+    hands: np.ndarray | None = None
+    blendshapes: np.ndarray | None = None
+    blendshape_names: tuple[str, ...] = ()
 
     def __post_init__(self):
         pos = np.asarray(self.positions, dtype=np.float64)
@@ -61,6 +77,52 @@ class Take:
         object.__setattr__(self, "positions", pos)
         object.__setattr__(self, "tracked", tracked & np.isfinite(pos).all(axis=2))
         object.__setattr__(self, "fps", float(self.fps))
+        self._check_people(where, pos.shape[0], j)
+
+    def _check_people(self, where: str, t: int, j: int) -> None:
+        p = len(self.people)
+        object.__setattr__(self, "people", tuple(int(i) for i in self.people))
+        object.__setattr__(self, "blendshape_names", tuple(self.blendshape_names))
+        if len(set(self.people)) != p:
+            raise BadMotionError(f"{where}: person ids must be distinct, got {list(self.people)}")
+        shapes = {"crowd_positions": (t, p, j, 3), "crowd_tracked": (t, p, j), "hands": (t, p, 2, 21, 3),
+                  "blendshapes": (t, p, len(self.blendshape_names))}
+        for name, shape in shapes.items():
+            value = getattr(self, name)
+            if value is None:
+                if p and name.startswith("crowd"):
+                    raise BadMotionError(f"{where}: a take with people needs {name}")
+                continue
+            if not p:
+                raise BadMotionError(f"{where}: {name} given without person ids")
+            value = np.asarray(value, dtype=bool if name == "crowd_tracked" else np.float64)
+            if value.shape != shape:
+                raise BadMotionError(f"{where}: {name} must be {shape}, got {value.shape}")
+            object.__setattr__(self, name, value)
+        if p:
+            object.__setattr__(self, "crowd_tracked",
+                               self.crowd_tracked & np.isfinite(self.crowd_positions).all(axis=3))
+
+    def _extras(self, s=slice(None), points=None) -> dict:
+        """The people fields, frames `s`, with `points` applied to every position array."""
+        move = points or (lambda x: x)
+        pick = lambda x: None if x is None else x[s]  # noqa: E731
+        return {"people": self.people,
+                "crowd_positions": None if self.crowd_positions is None else move(self.crowd_positions[s]),
+                "crowd_tracked": pick(self.crowd_tracked),
+                "hands": None if self.hands is None else move(self.hands[s]),
+                "blendshapes": pick(self.blendshapes), "blendshape_names": self.blendshape_names}
+
+    def person(self, pid: int) -> "Take":
+        """Person `pid` alone (their joints, hands and face) as a one-person take."""
+        if pid not in self.people:
+            raise BadMotionError(f"{self.source or 'take'}: no person {pid} (the take has {list(self.people)})")
+        k = self.people.index(pid)
+        one = slice(k, k + 1)
+        return Take(self.model, self.crowd_positions[:, k], self.crowd_tracked[:, k], self.fps, self.source,
+                    (pid,), self.crowd_positions[:, one], self.crowd_tracked[:, one],
+                    None if self.hands is None else self.hands[:, one],
+                    None if self.blendshapes is None else self.blendshapes[:, one], self.blendshape_names)
 
     def __len__(self) -> int:
         return int(self.positions.shape[0])
@@ -86,13 +148,16 @@ class Take:
         if not self.positions[s].shape[0]:
             raise BadMotionError(f"{self.source or 'take'}: frames {start}:{stop} select nothing "
                                  f"(the take has {len(self)} frames)")
-        return Take(self.model, self.positions[s], self.tracked[s], self.fps / step, self.source)
+        return Take(self.model, self.positions[s], self.tracked[s], self.fps / step, self.source,
+                    **self._extras(s))
 
     def transformed(self, scale: float = 1.0, rotation=None, translation=(0.0, 0.0, 0.0)) -> "Take":
         """Every frame under x -> scale * rotation @ x + translation."""
         r = np.eye(3) if rotation is None else np.asarray(rotation, dtype=np.float64)
-        pos = scale * self.positions @ r.T + np.asarray(translation, dtype=np.float64)
-        return Take(self.model, pos, self.tracked, self.fps, self.source)
+        t = np.asarray(translation, dtype=np.float64)
+        move = lambda x: scale * x @ r.T + t  # noqa: E731
+        return Take(self.model, move(self.positions), self.tracked, self.fps, self.source,
+                    **self._extras(points=move))
 
     @staticmethod
     def from_frames(frames: list[Skeleton], fps: float, source: str = "") -> "Take":
@@ -104,3 +169,43 @@ class Take:
             raise BadMotionError(f"{source or 'take'}: frames mix skeleton models")
         return Take(model, np.stack([f.positions for f in frames]), np.stack([f.tracked for f in frames]),
                     fps, source)
+
+
+@dataclass(frozen=True, eq=False)
+class PersonFrame:
+    """One person in one camera frame: their id, joints, hands and face.
+
+    skeleton : the person's joints; hands : (2, 21, 3) left and right hand landmarks (NaN rows where a hand
+    is not found) or None; blendshapes : (B,) face blendshape weights or None when no face is found.
+    """
+
+    id: int
+    skeleton: Skeleton
+    hands: np.ndarray | None = None
+    blendshapes: np.ndarray | None = None
+
+
+def crowd_take(main: list[Skeleton], people: list[tuple[PersonFrame, ...]], fps: float, source: str = "",
+               blendshape_names: tuple[str, ...] = ()) -> Take:
+    """A take from per-frame main skeletons and everyone seen in each frame (ids in order of appearance)."""
+    base = Take.from_frames(main, fps, source)
+    ids = list(dict.fromkeys(p.id for frame in people for p in frame))
+    if not ids:
+        return base
+    t, j = base.positions.shape[:2]
+    pos = np.full((t, len(ids), j, 3), np.nan)
+    tracked = np.zeros((t, len(ids), j), dtype=bool)
+    hands = np.full((t, len(ids), 2, 21, 3), np.nan)
+    faces = np.full((t, len(ids), len(blendshape_names)), np.nan)
+    any_hands = any_face = False
+    for i, frame in enumerate(people):
+        for p in frame:
+            k = ids.index(p.id)
+            pos[i, k], tracked[i, k] = p.skeleton.positions, p.skeleton.tracked
+            if p.hands is not None:
+                hands[i, k], any_hands = p.hands, True
+            if p.blendshapes is not None and blendshape_names:
+                faces[i, k], any_face = p.blendshapes, True
+    return Take(base.model, base.positions, base.tracked, base.fps, base.source, tuple(ids), pos, tracked,
+                hands if any_hands else None, faces if any_face else None,
+                blendshape_names if any_face else ())

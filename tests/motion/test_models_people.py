@@ -1,0 +1,84 @@
+"""Tracking models are checked by digest; person ids stay stable; takes carry people, hands and faces."""
+import numpy as np
+import pytest
+
+from kinetre.errors import BadModelError
+from kinetre.motion.models import MODELS, check_digest, model_path
+from kinetre.motion.people import Tracks, assign_ids
+from kinetre.motion.stream import read_stream, write_stream
+from kinetre.motion.take import PersonFrame, crowd_take
+from kinetre.skeleton.models import KINECT20, Skeleton
+
+
+def test_a_corrupted_model_is_refused_naming_the_file_and_both_digests(tmp_path):
+    bad = tmp_path / "hand_landmarker.task"
+    bad.write_bytes(b"not the model")
+    with pytest.raises(BadModelError) as e:
+        model_path("hand_landmarker.task", dirs=(tmp_path,))
+    msg = str(e.value)
+    assert str(bad) in msg and MODELS["hand_landmarker.task"].sha256 in msg and "\n" not in msg
+    import hashlib
+    assert hashlib.sha256(b"not the model").hexdigest() in msg
+
+
+def test_a_missing_model_names_the_make_target(tmp_path):
+    with pytest.raises(BadModelError, match="make models"):
+        model_path("pose_landmarker_full.task", dirs=(tmp_path,))
+    with pytest.raises(BadModelError, match="unknown model"):
+        model_path("nope.task")
+
+
+def test_the_right_bytes_pass_the_digest():
+    digest_of_empty = "e3b0c44298fc1c149afbf4c8996fb92427ae41e4649b934ca495991b7852b855"
+    from kinetre.motion import models
+    saved = models.MODELS["face_landmarker.task"]
+    models.MODELS["face_landmarker.task"] = models.ModelFile(saved.name, digest_of_empty, saved.sources)
+    try:
+        check_digest("face_landmarker.task", b"", "x")
+    finally:
+        models.MODELS["face_landmarker.task"] = saved
+
+
+def test_ids_follow_people_who_cross_and_come_back_within_memory():
+    state = Tracks()
+    ids, state = assign_ids(state, [[100, 50], [300, 50]], [40, 40], 0.0)
+    assert ids.tolist() == [0, 1]
+    # listed in the other order and moved a little: the assignment, not the order, decides
+    ids, state = assign_ids(state, [[290, 55], [110, 48]], [40, 40], 0.1)
+    assert ids.tolist() == [1, 0]
+    ids, state = assign_ids(state, [[112, 48]], [40, 40], 1.0)  # person 1 steps out
+    assert ids.tolist() == [0]
+    ids, state = assign_ids(state, [[115, 50], [285, 52]], [40, 40], 2.5)  # and back within 3 s
+    assert ids.tolist() == [0, 1]
+    ids, state = assign_ids(state, [[115, 50], [600, 52]], [40, 40], 2.6)  # far away: a new person
+    assert ids.tolist() == [0, 2]
+    ids, state = assign_ids(state, [[118, 50], [290, 50]], [40, 40], 5.55)  # 1 forgotten after 3 s
+    assert ids.tolist() == [0, 3] and [k.id for k in state.tracks] == [0, 2, 3]
+
+
+def test_people_hands_and_blendshapes_round_trip_and_old_fields_stay(tmp_path):
+    rng = np.random.default_rng(1)
+    main, people = [], []
+    names = ("_neutral", "jawOpen")
+    for i in range(3):
+        a = Skeleton(KINECT20, rng.normal(size=(20, 3)), np.ones(20, bool))
+        b = Skeleton(KINECT20, rng.normal(size=(20, 3)), np.ones(20, bool))
+        hands = rng.normal(size=(2, 21, 3))
+        hands[1] = np.nan  # right hand not found
+        frame = (PersonFrame(4, a, hands, np.array([0.1, i / 3])),) + ((PersonFrame(7, b),) if i != 1 else ())
+        main.append(a)
+        people.append(frame)
+    take = crowd_take(main, people, 30.0, "cam", names)
+    path = tmp_path / "t.kinetre.jsonl"
+    write_stream(path, take)
+    back = read_stream(path)
+    assert back.people == (4, 7) and back.blendshape_names == names
+    assert np.array_equal(back.positions, take.positions)
+    assert np.array_equal(back.hands, take.hands, equal_nan=True)
+    assert np.array_equal(back.blendshapes, take.blendshapes, equal_nan=True)
+    assert not back.crowd_tracked[1, 1].any() and back.crowd_tracked[2, 1].all()
+    seven = back.person(7)
+    assert np.array_equal(seven.positions[2], people[2][1].skeleton.positions)
+    moved = back.transformed(2.0, translation=(1.0, 0.0, 0.0))
+    assert np.allclose(moved.hands[0, 0, 0], 2 * take.hands[0, 0, 0] + [1, 0, 0])
+    assert len(back.slice(1, 3).crowd_positions) == 2
