@@ -5,7 +5,9 @@ import { Camera } from '../capture/Camera';
 import { FaceController, installFaceTestHook } from '../face/FaceController';
 import { neckAnchor } from '../face/neckAnchor';
 import { KinectMapper } from '../capture/KinectMapper';
-import { PoseTracker } from '../capture/PoseTracker';
+import { LandmarkTracker } from '../capture/LandmarkTracker';
+import { PersonTracks } from '../capture/PersonTracks';
+import type { Detection } from '../capture/detection';
 import { JOINT_COUNT } from '../capture/kinect20';
 import type { SceneState, ServerMessage, SkeletonMessage, TransformBlock, Vec3 } from '../net/protocol';
 import { StudioSocket } from '../net/StudioSocket';
@@ -34,7 +36,16 @@ export class Studio {
   readonly panel: Panel;
   readonly placement: PlacementControls;
   readonly camera: Camera;
-  readonly tracker = new PoseTracker();
+  readonly tracker = new LandmarkTracker({
+    wasm: new URL('mediapipe/tasks-vision/', document.baseURI).href,
+    models: new URL('models/', document.baseURI).href,
+    delegate: (new URLSearchParams(location.search).get('delegate')?.toUpperCase() as 'CPU' | 'GPU' | null) ?? 'auto',
+    numPoses: 4,
+    features: { hands: !new URLSearchParams(location.search).has('nohands'), face: !new URLSearchParams(location.search).has('noface') },
+  });
+  readonly tracks = new PersonTracks();
+  /** Ids of the people in this camera's view, and the one this page's own channel follows. */
+  people: number[] = [];
   readonly mapper = new KinectMapper();
   readonly voice: VoiceListener;
   readonly takes = new TakeRecorder();
@@ -197,6 +208,8 @@ export class Studio {
   private async toggleCamera(): Promise<void> {
     if (this.camera.running) {
       this.camera.stop();
+      this.tracks.forget();
+      this.people = [];
       this.panel.setActive('camera', false);
       return;
     }
@@ -214,24 +227,33 @@ export class Studio {
   }
 
   private async trackLoop(): Promise<void> {
+    this.tracker.onDetection = (d) => this.onDetection(d);
     while (this.camera.running) {
-      const result = await this.tracker.detect(this.camera.video).catch(() => null);
-      if (!this.camera.running) break;
-      if (result) {
-        const frame = this.mapper.map(result.world, result.image);
-        this.trackedJoints = frame.tracked.filter(Boolean).length;
-        this.trackingLost = false;
-        this.me.group.visible = true;
-        this.me.update(frame.positions, this.preview?.attachableJoints ?? []);
-        this.sendFrame(frame.positions, frame.tracked);
-        this.avatars.drive(frame.positions, frame.tracked, 'me');
-      } else {
-        // nobody in view: an all-untracked frame makes the server hold the last pose
-        this.trackingLost = true;
-        this.trackedJoints = 0;
-        this.sendFrame(new Array(JOINT_COUNT).fill(null), new Array(JOINT_COUNT).fill(false));
-      }
-      await new Promise((resolve) => setTimeout(resolve, 0));
+      await this.tracker.offer(this.camera.video);
+      await new Promise((resolve) => setTimeout(resolve, 5));
+    }
+  }
+
+  private onDetection(d: Detection): void {
+    if (!this.camera.running) return;
+    const ids = this.tracks.update(d.poses, d.width / d.height, d.t);
+    this.people = [...ids].sort((a, b) => a - b);
+    // this page's channel follows the person tracked longest (the lowest id in view)
+    const first = ids.indexOf(this.people[0]);
+    const pose = first >= 0 ? d.poses[first] : null;
+    if (pose) {
+      const frame = this.mapper.map(pose.world, pose.image);
+      this.trackedJoints = frame.tracked.filter(Boolean).length;
+      this.trackingLost = false;
+      this.me.group.visible = true;
+      this.me.update(frame.positions, this.preview?.attachableJoints ?? []);
+      this.sendFrame(frame.positions, frame.tracked);
+      this.avatars.drive(frame.positions, frame.tracked, 'me');
+    } else {
+      // nobody in view: an all-untracked frame makes the server hold the last pose
+      this.trackingLost = true;
+      this.trackedJoints = 0;
+      this.sendFrame(new Array(JOINT_COUNT).fill(null), new Array(JOINT_COUNT).fill(false));
     }
   }
 

@@ -1,7 +1,7 @@
 // MediaPipe Pose (33 landmarks) → Kinect 20 in the studio's frame (SPEC §3.1): metres, +Y up, +Z toward the
 // camera. World landmarks are hip-centred with +Y down, so the root translation (walking, jumping) is
 // recovered from the image: depth from the apparent torso length, x/y from where the hips are in the image.
-import type { NormalizedLandmark } from '@mediapipe/pose';
+import type { Landmark as NormalizedLandmark } from './detection';
 import { JOINT_COUNT } from './kinect20';
 import type { Vec3 } from '../net/protocol';
 

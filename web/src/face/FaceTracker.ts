@@ -1,7 +1,6 @@
 // MediaPipe Face Mesh on a video or image, from the files copied next to the page (no CDN).
 // @mediapipe/face_mesh is a classic script that defines window.FaceMesh; it is loaded on first use.
 import type { FaceMesh, Options, Results } from '@mediapipe/face_mesh';
-import { loadScript } from '../capture/PoseTracker';
 
 type FaceMeshConstructor = new (config: { locateFile: (file: string) => string }) => FaceMesh;
 
@@ -49,4 +48,15 @@ export class FaceTracker {
     this.detectMs = performance.now() - start;
     return this.latest ?? null;
   }
+}
+
+/** Load a classic script once (the MediaPipe solutions define their class on window). */
+function loadScript(src: string): Promise<void> {
+  return new Promise((resolve, reject) => {
+    const script = document.createElement('script');
+    script.src = src;
+    script.onload = () => resolve();
+    script.onerror = () => reject(new Error(`cannot load ${src}`));
+    document.head.appendChild(script);
+  });
 }

@@ -1,0 +1,89 @@
+// Stable ids for the people MediaPipe finds in each frame: detections are assigned to tracks by the
+// assignment of least total torso-centre distance (exact, by enumeration: at most a handful of people), a
+// track unseen for less than MEMORY_MS waits for its person to come back, and the distance a returning
+// person may have moved grows with the time they were gone.
+import type { PoseLandmarks } from './detection';
+
+const MEMORY_MS = 4000;
+const GATE = 0.15; // image widths a person may move between two frames
+const GATE_PER_SECOND = 0.15; // … plus this much per second unseen
+const TORSO = [11, 12, 23, 24];
+
+export interface Track {
+  id: number;
+  centre: [number, number]; // torso centre, in image widths
+  lastSeen: number; // ms
+}
+
+export function torsoCentre(pose: PoseLandmarks, aspect: number): [number, number] {
+  let x = 0, y = 0;
+  for (const i of TORSO) {
+    x += pose.image[i].x / TORSO.length;
+    y += pose.image[i].y / TORSO.length / aspect;
+  }
+  return [x, y];
+}
+
+/** The injective assignment rows → columns (or -1) of least total cost among the allowed pairs, favouring
+ * more pairs first: cost[r][c] is Infinity where a pair is not allowed. */
+export function assign(cost: number[][]): number[] {
+  const rows = cost.length, cols = rows ? cost[0].length : 0;
+  let best: number[] = new Array(rows).fill(-1);
+  let bestPairs = 0, bestCost = 0;
+  const used = new Array(cols).fill(false);
+  const current: number[] = [];
+  const walk = (r: number, pairs: number, total: number) => {
+    if (r === rows) {
+      if (pairs > bestPairs || (pairs === bestPairs && total < bestCost)) {
+        best = [...current]; bestPairs = pairs; bestCost = total;
+      }
+      return;
+    }
+    for (let c = 0; c < cols; c++) {
+      if (used[c] || !Number.isFinite(cost[r][c])) continue;
+      used[c] = true; current.push(c);
+      walk(r + 1, pairs + 1, total + cost[r][c]);
+      used[c] = false; current.pop();
+    }
+    current.push(-1);
+    walk(r + 1, pairs, total);
+    current.pop();
+  };
+  walk(0, 0, 0);
+  return best;
+}
+
+export class PersonTracks {
+  private tracks: Track[] = [];
+  private nextId = 1;
+
+  /** The id of each pose, in the order given; new people get new ids. */
+  update(poses: PoseLandmarks[], aspect: number, now: number): number[] {
+    this.tracks = this.tracks.filter((t) => now - t.lastSeen <= MEMORY_MS);
+    const centres = poses.map((p) => torsoCentre(p, aspect));
+    const cost = centres.map((c) => this.tracks.map((t) => {
+      const d = Math.hypot(c[0] - t.centre[0], c[1] - t.centre[1]);
+      return d <= GATE + (GATE_PER_SECOND * (now - t.lastSeen)) / 1000 ? d : Infinity;
+    }));
+    const match = assign(cost);
+    return centres.map((centre, i) => {
+      let track = match[i] >= 0 ? this.tracks[match[i]] : undefined;
+      if (!track) {
+        track = { id: this.nextId++, centre, lastSeen: now };
+        this.tracks.push(track);
+      }
+      track.centre = centre;
+      track.lastSeen = now;
+      return track.id;
+    });
+  }
+
+  /** Ids remembered (seen within the memory), oldest first. */
+  get ids(): number[] {
+    return this.tracks.map((t) => t.id);
+  }
+
+  forget(): void {
+    this.tracks = [];
+  }
+}
