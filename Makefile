@@ -10,8 +10,8 @@ MODEL_DIR := .cache/models
 MODEL_STAMP := $(MODEL_DIR)/.kinetre-verified
 APT_STAMP := /var/lib/kinetre-apt-$(shell echo $(APT_PACKAGES) | md5sum | cut -c1-8)
 # Debian packages: CHOLMOD headers (scikit-sparse), the browser for tests, ffmpeg for video,
-# festival voices for speech fixtures, nats-server for the network layer.
-APT_PACKAGES := libsuitesparse-dev build-essential chromium ffmpeg libegl1 libgl1-mesa-dri festival festvox-kallpc16k festvox-us-slt-hts sox espeak-ng nats-server
+# festival voices for speech fixtures, nats-server for the network layer, Blender (and its numpy) as a tested client.
+APT_PACKAGES := libsuitesparse-dev build-essential chromium ffmpeg libegl1 libgl1-mesa-dri festival festvox-kallpc16k festvox-us-slt-hts sox espeak-ng nats-server blender python3-numpy
 export NUMBA_CACHE_DIR := $(CURDIR)/.cache/numba
 
 .PHONY: setup studio test bench web apt python models clean
