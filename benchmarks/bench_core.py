@@ -51,14 +51,11 @@ def bench_build_graph():
 
 
 # one record per design worth an option: the default (adaptive: half cycle, two-level, coarse space), its parts,
-# block Jacobi with and without the coarse space, local/global (`local_global.py`, its variants in
-# bench_local_global) and the exact reference. Designs that long lost (v-cycle, additive, coordinate alone,
-# CG tolerance and backtracking variants, the exact solve reusing its factor) are still settings but no longer
-# timed here: the bench stays a few minutes.
+# block Jacobi with and without the coarse space, and the exact reference.
 DESIGNS = {
     "pcg_adaptive": SolverSettings(),
-    # session 11's default: the same preconditioners, a frame ends only on a step that gained < 1e-3 of E
-    "pcg_adaptive_s11": SolverSettings(stop="decrease"),
+    # the same preconditioners, a frame ends only on a step that gained < 1e-3 of E
+    "pcg_adaptive_decrease": SolverSettings(remaining_tolerance=0.0),
     "pcg_adaptive_no_coarse": SolverSettings(coarse_regions=0),
     "pcg_half_cycle": SolverSettings(preconditioner="half_cycle", coarse_regions=0),
     "pcg_half_cycle_gauss_newton_blocks": SolverSettings(preconditioner="half_cycle", coarse_regions=0,
@@ -66,12 +63,11 @@ DESIGNS = {
     "pcg_two_level": SolverSettings(preconditioner="two_level", coarse_regions=0),
     "pcg_block_jacobi": SolverSettings(preconditioner="block_jacobi", coarse_regions=0),
     "pcg_block_jacobi_coarse": SolverSettings(preconditioner="block_jacobi"),
-    "local_global": SolverSettings(method="local_global"),
     "exact_gn": SolverSettings(method="exact"),
 }
 # what a solve carries over to the next frame, restored between the timed runs of one frame
-_SOLVER_STATE = ("_lam", "_lam_exact", "_last_energy", "_jump_left", "_active_key", "_linear_data", "_factored",
-                 "_diag", "_cg_per_step", "_coarse_on", "_contraction")
+_SOLVER_STATE = ("_lam", "_lam_exact", "_last_energy", "_jump_left", "_active_key", "_linear_data", "_cg_per_step",
+                 "_coarse_on", "_contraction")
 
 
 def timed_solve(rig, frame, repeats):
@@ -222,7 +218,7 @@ def bench_solve_agreement(cases=((256, 2), (256, 1, "right arm")), skip=5):
     reference costs up to 30 factorisations a frame (these two took 7 min at load 2.5; 512 nodes ~2× each)."""
     frames, _ = walk_frames()
     body = capsule_body(frames[0], radius=0.06)
-    designs = {"pcg_adaptive": DESIGNS["pcg_adaptive"], "pcg_adaptive_s11": DESIGNS["pcg_adaptive_s11"],
+    designs = {"pcg_adaptive": DESIGNS["pcg_adaptive"], "pcg_adaptive_decrease": DESIGNS["pcg_adaptive_decrease"],
                "pcg_block_jacobi_coarse": DESIGNS["pcg_block_jacobi_coarse"], "exact_gn": DESIGNS["exact_gn"]}
     graphs = {}
     for nodes, skeletons, *subset in cases:
@@ -277,7 +273,7 @@ def bench_coordinate_solve(node_counts=(256, 512)):
     4 × 4 node blocks (the solver's), a dense Cholesky (LAPACK potrs) and a dense inverse (one GEMM)."""
     from scipy.linalg import lapack
 
-    from kinetre.deform.krylov import _coordinate_solve
+    from kinetre.deform.fast.preconditioner import coordinate_solve
     take = load_bvh(DATA / "bvh" / "cmu_12_01_walk.bvh")
     frames = [take.frame(i) for i in range(0, 40, 4)]
     body = capsule_body(frames[0], radius=0.06)
@@ -291,7 +287,7 @@ def bench_coordinate_solve(node_counts=(256, 512)):
         inverse = np.linalg.inv(dense)
         r = np.random.default_rng(0).standard_normal(3 * len(dense))
         out, work, rhs = np.empty_like(r), np.empty_like(r), r.reshape(-1, 3).copy()
-        ways = {"sparse_factor": lambda: _coordinate_solve(fac, r, out, work),
+        ways = {"sparse_factor": lambda: coordinate_solve(fac, r, out, work),
                 "dense_cholesky": lambda: lapack.dpotrs(chol, rhs, lower=1),
                 "dense_inverse": lambda: inverse @ rhs}
         for name, fn in ways.items():

@@ -25,7 +25,7 @@ from pathlib import Path
 import numpy as np
 
 import kinetre
-from kinetre.deform.live_stop import Yield
+from kinetre.deform.fast.live_stop import Yield
 from kinetre.motion.bvh import load_bvh
 from kinetre.studio.placement import Placement, standing_mesh
 

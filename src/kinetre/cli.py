@@ -605,8 +605,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--subset", action="append", metavar="JOINTS",
                    help='joints that drive, e.g. "right arm" or "HipCenter,right arm" (repeatable)')
     p.add_argument("--bind-frame", type=int, default=0, help="frame used as the bind pose (default 0)")
-    p.add_argument("--solver", choices=("pcg", "local_global", "exact"), default=None,
-                   help="per-frame solver (default: the library's, pcg): pcg, local_global or exact (the reference)")
+    p.add_argument("--solver", choices=("pcg", "exact"), default=None,
+                   help="per-frame solver (default: the library's, pcg): pcg or exact (the reference)")
     p.add_argument("--fit", nargs="?", const="mesh", default=None, choices=("mesh", "height", "length"),
                    help="--fit alone: resize the mesh to the skeleton instead of the motion to the mesh; "
                         "--fit height|length: size a non-human source to the mesh by that extent")

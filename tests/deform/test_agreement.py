@@ -42,7 +42,7 @@ def _same_start(graph, frames, designs, subset=None):
 @pytest.mark.parametrize("subset", [None, "right arm"])
 def test_default_matches_the_converged_exact_solve_from_the_same_start(walk, subset):
     frames, graph = walk
-    designs = {"default": SolverSettings(), "decrease": SolverSettings(stop="decrease"),
+    designs = {"default": SolverSettings(), "decrease": SolverSettings(remaining_tolerance=0.0),
                "exact": SolverSettings(method="exact")}
     gaps, steps = _same_start(graph, frames, designs, subset)
     for name, gap in gaps.items():
@@ -51,7 +51,7 @@ def test_default_matches_the_converged_exact_solve_from_the_same_start(walk, sub
     g = gaps["default"]
     assert np.median(g) < 1e-3 and np.percentile(g, 90) < 5e-3 and g.max() < 2e-2, g
     # on the whole body (half-cycle frames) the rule saves the step that only confirmed convergence; one arm
-    # runs mostly with the coarse space, where frames end by "decrease" (see `GaussNewton._solve_pcg`)
+    # runs mostly with the coarse space, where frames end by the decrease alone (see `GaussNewton._solve_pcg`)
     if subset is None:
         assert steps["default"].mean() < steps["decrease"].mean(), steps
 
@@ -62,7 +62,7 @@ def test_remaining_rule_on_two_level_frames(walk):
     "decrease", the same agreement with the minimum."""
     frames, graph = walk
     designs = {"remaining": SolverSettings(preconditioner="two_level", coarse_regions=0), "decrease": SolverSettings(preconditioner="two_level", coarse_regions=0,
-                                                                   stop="decrease")}
+                                                                   remaining_tolerance=0.0)}
     gaps, steps = _same_start(graph, frames, designs)
     assert steps["remaining"].mean() < steps["decrease"].mean(), steps
     g = gaps["remaining"]
@@ -73,7 +73,7 @@ def test_remaining_rule_stops_before_the_confirming_step(walk):
     """Same frames, same start: with the "remaining" rule no frame takes more steps than with "decrease",
     and a tighter remaining tolerance brings the energy closer to the minimum."""
     frames, graph = walk
-    designs = {"decrease": SolverSettings(stop="decrease"), "loose": SolverSettings(remaining_tolerance=1e-3),
+    designs = {"decrease": SolverSettings(remaining_tolerance=0.0), "loose": SolverSettings(remaining_tolerance=1e-3),
                "tight": SolverSettings(remaining_tolerance=1e-5)}
     gaps, steps = _same_start(graph, frames[:20], designs)
     assert np.mean(steps["loose"]) < np.mean(steps["decrease"]), steps
@@ -81,6 +81,8 @@ def test_remaining_rule_stops_before_the_confirming_step(walk):
     assert np.median(gaps["tight"]) < 2e-4, gaps
 
 
-def test_stop_rule_is_checked():
-    with pytest.raises(ValueError, match="stop"):
-        SolverSettings(stop="never")
+def test_settings_are_checked():
+    with pytest.raises(ValueError, match="method"):
+        SolverSettings(method="local_global")
+    with pytest.raises(ValueError, match="preconditioner"):
+        SolverSettings(preconditioner="v_cycle")

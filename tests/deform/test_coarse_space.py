@@ -4,8 +4,8 @@ import numpy as np
 import pytest
 
 import kinetre
-from kinetre.deform import coarse_space, krylov
-from kinetre.deform.coordinate_split import CoordinateSplit
+from kinetre.deform.fast import cg, coarse_space, hessian, preconditioner
+from kinetre.deform.fast.coordinate_split import CoordinateSplit
 from kinetre.deform.energy import EnergyWeights
 from kinetre.deform.normal_equations import NormalEquations
 from kinetre.deform.solver import HALF_CYCLE, TWO_LEVEL, GaussNewton, SolverSettings
@@ -56,7 +56,7 @@ def test_regions_cover_the_graph_and_carry_rigid_motions(armadillo_system):
         c[r, :9] = wx.T.reshape(-1)  # coordinate layout: entry 3 b + a is F[a, b]
         c[r, 9:] = np.cross(omega, centroids[split.region == r][0] - centre)
     got = _prolongation(split, count) @ c.reshape(-1)
-    assert np.allclose(got, krylov.to_coordinate_layout(field), atol=1e-12)
+    assert np.allclose(got, hessian.to_coordinate_layout(field), atol=1e-12)
 
 
 def test_coarse_correction_is_the_galerkin_solve(armadillo_system):
@@ -71,14 +71,14 @@ def test_coarse_correction_is_the_galerkin_solve(armadillo_system):
     rng = np.random.default_rng(7)
     x = identity_x(n) + 0.2 * rng.standard_normal((n, 12))
     rot, rig = np.zeros((n, 9, 9)), np.zeros((len(ne.bridges), 18, 18))
-    krylov.local_blocks(x[:, :9].reshape(-1, 3, 3), ne.bridges, 1.0, 1.0, rot, rig)
-    krylov.stretch_curvature(x[:, :9].reshape(-1, 3, 3), 1.0, rot)
+    hessian.local_blocks(x[:, :9].reshape(-1, 3, 3), ne.bridges, 1.0, 1.0, rot, rig)
+    hessian.stretch_curvature(x[:, :9].reshape(-1, 3, 3), 1.0, rot)
     damp = rng.uniform(0, 0.1, 12 * n)
     h = np.empty((12 * n, 12 * n))
     for i in range(12 * n):
         e = np.zeros(12 * n)
         e[i] = 1.0
-        krylov._hessian_times(*k, rot, rig, ne.bridges, damp, split.shift, e, h[:, i])
+        hessian.hessian_times(*k, rot, rig, ne.bridges, damp, split.shift, e, h[:, i])
     p = _prolongation(split, 6)
     gfac = np.zeros((72, 72))
     coarse_space.coarse_factor(split.frame_data(active)[3], split.region, split.offsets, rot, rig, ne.bridges, damp, gfac)
@@ -91,14 +91,14 @@ def test_coarse_correction_is_the_galerkin_solve(armadillo_system):
     want = p @ np.linalg.solve(galerkin, p.T @ r)
     assert np.allclose(z, want, rtol=1e-9, atol=1e-9 * np.abs(want).max())
     node_fac = np.zeros((n, 12, 12))
-    krylov.node_factors(k_blocks, rot, rig, ne.bridges, damp, node_fac)
+    preconditioner.node_factors(k_blocks, rot, rig, ne.bridges, damp, node_fac)
     coarse = (gfac, split.region, split.offsets)
-    for kind in (krylov.HALF_CYCLE, krylov.TWO_LEVEL):
-        sol, its, converged = krylov.pcg(kind, fac, *k, rot, rig, ne.bridges, damp, node_fac, coarse, r, 200, 1e-9)
+    for kind in (preconditioner.HALF_CYCLE, preconditioner.TWO_LEVEL):
+        sol, its, converged = cg.pcg(kind, fac, *k, rot, rig, ne.bridges, damp, node_fac, coarse, r, 200, 1e-9)
         assert converged and np.abs(h @ sol - r).max() < 1e-7 * np.abs(r).max(), (kind, its)
     # the half cycle hands H z back to CG: with the coarse stage too
     zz, hz, t1, t2, work = (np.empty(12 * n) for _ in range(5))
-    assert krylov._precondition(krylov.HALF_CYCLE, fac, *k, rot, rig, ne.bridges, damp, node_fac, coarse, r, zz, hz,
+    assert preconditioner.precondition(preconditioner.HALF_CYCLE, fac, *k, rot, rig, ne.bridges, damp, node_fac, coarse, r, zz, hz,
                                 t1, t2, work)
     assert np.abs(hz - h @ zz).max() < 1e-9 * np.abs(hz).max()
 

@@ -1,4 +1,4 @@
-"""A live solve yields to a newer frame inside the PCG loop (`live_stop.Yield`, issue 12): the frame ends after
+"""A live solve yields to a newer frame inside the PCG loop (`live_stop.Yield`): the frame ends after
 an accepted step with E lowered, `SolveReport.stopped` says so, and the next frames go on from the pose
 reached and rejoin the uncut solve. Without the flag set, or before the frame has had its share, nothing
 changes."""
@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 import kinetre
-from kinetre.deform.live_stop import Yield, thread_cpu_time
+from kinetre.deform.fast.live_stop import Yield, thread_cpu_time
 
 
 @pytest.fixture(scope="module")

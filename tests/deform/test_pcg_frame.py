@@ -1,4 +1,4 @@
-"""A PCG frame in one numba call (`pcg_frame.py`: the constant-velocity guess, the start's energies, the jump
+"""A PCG frame in one numba call (`fast/gauss_newton.py`: the constant-velocity guess, the start's energies, the jump
 test and the Gauss-Newton loop) gives bit for bit the poses of the same frames solved through the Python path
 (the guess made and weighed in numpy, `GaussNewton.solve(guess=...)`), teleports included."""
 import numpy as np
@@ -61,7 +61,7 @@ def test_one_call_frames_equal_the_python_path(walk, settings, monkeypatch):
 
 
 def test_all_finite_finds_one_bad_entry():
-    from kinetre.deform.pcg_frame import all_finite
+    from kinetre.deform.fast.gauss_newton import all_finite
     x = np.zeros((5, 12))
     x[:, [0, 4, 8]] = 1.0
     assert all_finite(x)

@@ -1,9 +1,10 @@
-"""The embedded-deformation energy, one function per term (Eq. 3, 4, 5, 7, 8).
+"""The embedded-deformation energy, one function per term (Eq. 2, 3, 4, 5, 7, 8): the definition.
 
 Unknowns: per node j an affine R_j (3×3) and a translation t_j, with A_j[v] = R_j (v − g_j) + g_j + t_j
 (Eq. 1). Each term returns its residual vector r so that the term equals ‖r‖²; Gauss-Newton works on
-the stacked, weighted residuals. These numpy versions are the readable reference; the solver
-evaluates the same sums in `normal_equations.py`.
+the stacked, weighted residuals. The exact reference solve (`normal_equations.py`) takes its residuals from
+here; the fast path evaluates the same sums, with the gradient, in one numba kernel (`fast/energy.py`),
+which the tests check against these.
 """
 from __future__ import annotations
 
@@ -46,14 +47,18 @@ def regularization_residuals(R: np.ndarray, t: np.ndarray, g: np.ndarray, edges:
     return np.einsum("nab,nb->na", R[j], g[k] - g[j]) + g[j] + t[j] - g[k] - t[k]
 
 
-def constraint_residuals(R: np.ndarray, t: np.ndarray, g: np.ndarray, constraints: PointConstraints,
-                         targets: np.ndarray) -> np.ndarray:
-    """Eq. 5: φ(p_ℓ) − q_ℓ with φ the Eq. 2 blend. Returns (L, 3)."""
+def carriers(R: np.ndarray, t: np.ndarray, g: np.ndarray, constraints: PointConstraints) -> np.ndarray:
+    """Eq. 2 at the constraint points: φ(p_ℓ) = Σ_i w_i A_i[p_ℓ] over the nodes carrying each. Returns (L, 3)."""
     p = constraints.points
     idx = constraints.nodes
-    w = constraints.weights
     moved = np.einsum("lkab,lkb->lka", R[idx], p[:, None, :] - g[idx]) + g[idx] + t[idx]
-    return np.einsum("lk,lka->la", w, moved) - targets
+    return np.einsum("lk,lka->la", constraints.weights, moved)
+
+
+def constraint_residuals(R: np.ndarray, t: np.ndarray, g: np.ndarray, constraints: PointConstraints,
+                         targets: np.ndarray) -> np.ndarray:
+    """Eq. 5: φ(p_ℓ) − q_ℓ with φ the Eq. 2 blend (`carriers`). Returns (L, 3)."""
+    return carriers(R, t, g, constraints) - targets
 
 
 def rigidity_residuals(R: np.ndarray, t: np.ndarray, g: np.ndarray, bridges: np.ndarray) -> np.ndarray:

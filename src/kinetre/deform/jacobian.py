@@ -14,6 +14,8 @@ from .constraints import PointConstraints
 
 # Column pairs (p, q) of R behind the 6 rotation residuals, in `rotation_residuals` order.
 ROT_PAIRS = ((0, 1), (0, 2), (1, 2), (0, 0), (1, 1), (2, 2))
+ROT_P = np.array([p for p, _ in ROT_PAIRS], dtype=np.int64)  # the pairs as arrays, for the kernels
+ROT_Q = np.array([q for _, q in ROT_PAIRS], dtype=np.int64)
 
 
 def r_col(j, a, b):

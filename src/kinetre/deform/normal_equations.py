@@ -16,15 +16,13 @@ from scipy.sparse import csc_matrix, csr_matrix, identity
 
 from ..jit import njit
 from .constraints import PointConstraints
-from .energy import EnergyWeights
-from .jacobian import (ROT_PAIRS, constraint_jacobian, regularization_jacobian, rigidity_jacobian,
+from .energy import (EnergyWeights, constraint_residuals, regularization_residuals, rigidity_residuals,
+                     rotation_residuals)
+from .jacobian import (ROT_P, ROT_Q, constraint_jacobian, regularization_jacobian, rigidity_jacobian,
                        rotation_jacobian)
 
-_ROT_P = np.array([p for p, _ in ROT_PAIRS], dtype=np.int64)
-_ROT_Q = np.array([q for _, q in ROT_PAIRS], dtype=np.int64)
 
-
-def _positions(indptr: np.ndarray, indices: np.ndarray, n: int, rows, cols) -> np.ndarray:
+def positions(indptr: np.ndarray, indices: np.ndarray, n: int, rows, cols) -> np.ndarray:
     """Index into a CSC data array of each (row, col) entry, which must exist in the pattern."""
     col_of = np.repeat(np.arange(n, dtype=np.int64), np.diff(indptr))
     keys = col_of * n + indices
@@ -36,11 +34,11 @@ def _positions(indptr: np.ndarray, indices: np.ndarray, n: int, rows, cols) -> n
     return pos
 
 
-def _scatter(pattern_indptr, pattern_indices, n, m) -> np.ndarray:
+def scatter(pattern_indptr, pattern_indices, n, m) -> np.ndarray:
     """A sparse matrix's values laid out on the pattern (zeros elsewhere)."""
     m = m.tocoo()
     data = np.zeros(len(pattern_indices))
-    np.add.at(data, _positions(pattern_indptr, pattern_indices, n, m.row, m.col), m.data)
+    np.add.at(data, positions(pattern_indptr, pattern_indices, n, m.row, m.col), m.data)
     return data
 
 
@@ -63,7 +61,7 @@ class NormalEquations:
     j_con: csr_matrix
     b_con: np.ndarray        # constant part of the constraint residual before subtracting q
     weights: EnergyWeights
-    g: np.ndarray | None = None                      # the terms' raw data, for `gradient.energy_gradient`
+    g: np.ndarray | None = None                      # the terms' raw data (`energy.py`, `fast/energy.py`)
     edges: np.ndarray | None = None
     constraints: PointConstraints | None = None
 
@@ -95,13 +93,13 @@ class NormalEquations:
         jj = np.arange(nodes)
         rv = np.arange(9)
         rot_cols = 12 * jj[:, None] + rv[None, :]                      # (N, 9)
-        rot_pos = _positions(indptr, indices, n, np.repeat(rot_cols, 9, axis=1).reshape(-1),
+        rot_pos = positions(indptr, indices, n, np.repeat(rot_cols, 9, axis=1).reshape(-1),
                              np.tile(rot_cols, (1, 9)).reshape(-1)).reshape(nodes, 9, 9)
         b = np.asarray(bridge_edges, dtype=np.int64).reshape(-1, 2)
         rig_cols = np.concatenate([12 * b[:, :1] + rv, 12 * b[:, 1:] + rv], axis=1)  # (B, 18)
-        rig_pos = _positions(indptr, indices, n, np.repeat(rig_cols, 18, axis=1).reshape(-1),
+        rig_pos = positions(indptr, indices, n, np.repeat(rig_cols, 18, axis=1).reshape(-1),
                              np.tile(rig_cols, (1, 18)).reshape(-1)).reshape(len(b), 18, 18)
-        diag_pos = _positions(indptr, indices, n, np.arange(n), np.arange(n))
+        diag_pos = positions(indptr, indices, n, np.arange(n), np.arange(n))
 
         const = weights.reg * (j_reg.T @ j_reg)
         if len(b):
@@ -113,7 +111,7 @@ class NormalEquations:
         b_con = np.einsum("lk,lka->la", constraints.weights, g[constraints.nodes]).reshape(-1) \
             if len(constraints) else np.zeros(0)
         return NormalEquations(n, indptr, indices, rot_pos, rig_pos, diag_pos, b,
-                               _scatter(indptr, indices, n, const), j_reg.tocsr(), b_reg, j_gap.tocsr(), b_gap,
+                               scatter(indptr, indices, n, const), j_reg.tocsr(), b_reg, j_gap.tocsr(), b_gap,
                                j_con.tocsr(), b_con, weights, np.ascontiguousarray(g, dtype=np.float64),
                                np.ascontiguousarray(edges, dtype=np.int64), constraints)
 
@@ -121,17 +119,19 @@ class NormalEquations:
         """w_con J_conᵀ S² J_con on the pattern, for the per-constraint scales `active` (L,)."""
         s2 = np.repeat(np.asarray(active, dtype=np.float64) ** 2, 3)
         m = self.j_con.T @ (self.j_con.multiply(s2[:, None]).tocsr())
-        return self.weights.con * _scatter(self.indptr, self.indices, self.n, m)
+        return self.weights.con * scatter(self.indptr, self.indices, self.n, m)
 
     def residuals(self, x: np.ndarray, targets: np.ndarray, active: np.ndarray):
-        """Unweighted residual blocks (rot, rig-R, reg, gap, con) at x (N, 12)."""
+        """Unweighted residual blocks (rot, rig-R, reg, gap, con) at x (N, 12), flat, from the terms'
+        definitions (`energy.py`): the rows of the Jacobians here."""
         R = x[:, :9].reshape(-1, 3, 3)
-        xf = x.reshape(-1)
-        r_rot, r_rig = _nonlinear_residuals(R, self.bridges)
-        r_reg = self.j_reg @ xf + self.b_reg
-        r_gap = self.j_gap @ xf + self.b_gap
-        r_con = (self.j_con @ xf + self.b_con - targets.reshape(-1)) * np.repeat(active, 3)
-        return r_rot, r_rig, r_reg, r_gap, r_con
+        t = x[:, 9:]
+        r_rig = rigidity_residuals(R, t, self.g, self.bridges)
+        r_con = np.asarray(active, dtype=np.float64)[:, None] * constraint_residuals(R, t, self.g, self.constraints,
+                                                                                     targets)
+        return (rotation_residuals(R).reshape(-1), r_rig[:, :9].reshape(-1),
+                regularization_residuals(R, t, self.g, self.edges).reshape(-1), r_rig[:, 9:].reshape(-1),
+                r_con.reshape(-1))
 
     def energy(self, parts) -> float:
         r_rot, r_rig, r_reg, r_gap, r_con = parts
@@ -174,11 +174,11 @@ class NormalEquations:
 @njit(cache=True)
 def rotation_block_jacobian(R, j, coordinate, jac):
     """Eq. 3's (6, 9) Jacobian of node j over its R entries: R[a, b] at 3 a + b, or at 3 b + a in the
-    `coordinate` layout of `krylov.py`. d(c_p·c_q)/dR[a, p] = R[a, q] and d/dR[a, q] = R[a, p]."""
+    `coordinate` layout of `fast/hessian.py`. d(c_p·c_q)/dR[a, p] = R[a, q] and d/dR[a, q] = R[a, p]."""
     jac[:] = 0.0
     for r in range(6):
-        p = _ROT_P[r]
-        q = _ROT_Q[r]
+        p = ROT_P[r]
+        q = ROT_Q[r]
         for a in range(3):
             jac[r, 3 * p + a if coordinate else 3 * a + p] += R[j, a, q]
             jac[r, 3 * q + a if coordinate else 3 * a + q] += R[j, a, p]
@@ -193,28 +193,6 @@ def rigidity_block_jacobian(R, j, k, coordinate, jac):
             for c in range(3):
                 jac[3 * a + b, 3 * b + c if coordinate else 3 * c + b] += R[k, c, a]           # d/dR_j[c, b]
                 jac[3 * a + b, 9 + (3 * a + c if coordinate else 3 * c + a)] += R[j, c, b]     # d/dR_k[c, a]
-
-
-@njit(cache=True)
-def _nonlinear_residuals(R, bridges):
-    n = R.shape[0]
-    r_rot = np.empty(6 * n)
-    for j in range(n):
-        for r in range(6):
-            p = _ROT_P[r]
-            q = _ROT_Q[r]
-            s = R[j, 0, p] * R[j, 0, q] + R[j, 1, p] * R[j, 1, q] + R[j, 2, p] * R[j, 2, q]
-            r_rot[6 * j + r] = s - 1.0 if p == q else s
-    nb = bridges.shape[0]
-    r_rig = np.empty(9 * nb)
-    for e in range(nb):
-        j = bridges[e, 0]
-        k = bridges[e, 1]
-        for a in range(3):
-            for b in range(3):
-                s = R[k, 0, a] * R[j, 0, b] + R[k, 1, a] * R[j, 1, b] + R[k, 2, a] * R[j, 2, b]
-                r_rig[9 * e + 3 * a + b] = s - 1.0 if a == b else s
-    return r_rot, r_rig
 
 
 @njit(cache=True)

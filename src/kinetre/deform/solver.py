@@ -1,19 +1,13 @@
-"""Gauss-Newton with Levenberg-Marquardt damping on the Eq. 8 energy, warm-started per frame.
+"""The solver: its settings, the damped Gauss-Newton loop on E (Eq. 8) and the exact reference solve.
 
-Each iteration solves (JᵀJ + λ diag(JᵀJ)) δ = −Jᵀr. By default (`method="pcg"`) with a few conjugate
-gradient iterations preconditioned by the per-coordinate factor of the linear terms (`coordinate_split.py`,
-`krylov.py`): no factorisation per frame, only triangular solves on a 4N system; its node blocks also
-carry E_rot's own curvature where columns stretch (`krylov.stretch_curvature`). `method="exact"` solves
-with a sparse Cholesky of the full 12N system, its symbolic analysis reused (the reference).
-`method="local_global"` replaces the PCG loop by Anderson-accelerated local/global iterations on the same
-factor (`local_global.py`), handing over to it when they stall.
-A step that does not lower E is rejected and λ grows, so E never increases. The loop stops after
-`max_iterations` steps, or as soon as an accepted step's decrease is negligible — checked before
-factoring again, so no factorisation is spent only to confirm convergence.
-
-With `reuse_factor` the numeric factor of an earlier iteration (or frame) is kept while its steps
-keep lowering E, and refreshed when one does not: an inexact Newton step that trades a few more,
-much cheaper iterations for far fewer factorisations (ours; see the benchmark).
+Per frame, warm-started from the last pose, Gauss-Newton with Levenberg-Marquardt damping: each step solves
+(JᵀJ + λ diag(JᵀJ)) δ = −Jᵀr and is kept only when it lowers E, else λ grows, so E never increases.
+- `method="exact"` (the reference, also every rig's first frame): δ from a sparse Cholesky of the full 12N
+  system (`normal_equations.py`, `factor.py`), its symbolic analysis reused; the loop is `_solve_exact`.
+- `method="pcg"` (default): the same loop with δ from a few conjugate-gradient iterations, preconditioned by
+  a per-coordinate factor of the linear terms and per-node blocks, in one numba call per frame (`fast/`).
+A frame whose start is far above the last result (a skeleton teleporting) is a jump: it starts from the best
+rigid motion of the pose onto the targets when that fits better (`rigid_start.py`) and gets twice the steps.
 """
 from __future__ import annotations
 
@@ -21,79 +15,57 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from .coordinate_split import CoordinateSplit
 from .factor import NotPositiveDefinite, ReusedCholesky
-from .gradient import energy_gradient
-from .krylov import ADDITIVE, BLOCK_JACOBI, COORDINATE, HALF_CYCLE, TWO_LEVEL, V_CYCLE
-from .live_stop import NO_FLAG, Yield
-from .local_global import LocalGlobalSettings
-from .local_global import solve_frame as local_global_frame
-from .pcg_frame import pcg_frame
+from .fast.coordinate_split import CoordinateSplit
+from .fast.energy import energy_gradient
+from .fast.gauss_newton import pcg_frame
+from .fast.live_stop import NO_FLAG, Yield
+from .fast.preconditioner import BLOCK_JACOBI, HALF_CYCLE, TWO_LEVEL
 from .normal_equations import NormalEquations
 from .rigid_start import rigid_start
 
-# the preconditioners whose frames end by the "remaining" rule (coarse-space frames end by "decrease")
+# the preconditioners whose frames end by the "remaining" rule (with the coarse space, by the decrease alone)
 REMAINING_TIERS = (HALF_CYCLE, TWO_LEVEL)
 
-PRECONDITIONERS = {"coordinate": COORDINATE, "block_jacobi": BLOCK_JACOBI, "two_level": TWO_LEVEL, "additive": ADDITIVE,
-                   "v_cycle": V_CYCLE, "half_cycle": HALF_CYCLE, "adaptive": HALF_CYCLE}
+PRECONDITIONERS = {"block_jacobi": BLOCK_JACOBI, "two_level": TWO_LEVEL, "half_cycle": HALF_CYCLE,
+                   "adaptive": HALF_CYCLE}
 
 
 @dataclass(frozen=True)
 class SolverSettings:
     """How `Rig.solve` minimises E per frame.
 
-    method : "pcg" (default), "exact" (sparse Cholesky of the full system, the reference) or
-        "local_global" (`local_global.py`, settings in `local_global`; jumps and the first frame as "pcg")
-    preconditioner : for "pcg": "adaptive" (default: "half_cycle" while the last frames' Gauss-Newton steps
-        needed about one CG iteration each, else "two_level": see `GaussNewton._preconditioner`),
-        "half_cycle" (node blocks then K_σ for a step's first CG iteration, then
-        "two_level": one pair of triangular solves where most steps need only that iteration),
-        "two_level" (K_σ, node blocks, K_σ), "v_cycle" (node blocks, K_σ, node
-        blocks: one pair of triangular solves per application instead of two, but at 512 nodes twice the
-        iterations), "additive" (K_σ + node blocks),
-        "coordinate" (K_σ only) or "block_jacobi" (node blocks, plus the coarse space unless
-        `coarse_regions` is 0); see `krylov.py`. Only K_σ or the coarse space carry the
-        graph-wide coupling: block Jacobi alone stalls when few nodes are constrained (one arm, 256 nodes:
-        0.25 above the exact energy; with the coarse space 4e-5, and faster than the default there and at
-        512 nodes with one skeleton, slower at 512 with two: bench_core)
-    cg_iterations, cg_tolerance : CG iterations per Gauss-Newton step at most, and the relative
-        residual that ends them earlier
-    jump : for "pcg": a frame whose starting energy exceeds `jump` times the last solve's result (and
-        the first solve) is a jump: its start is the best rigid motion of the pose onto the targets when
-        that fits better (`rigid_start.py`); if it is still a jump it gets twice the steps, of `jump_steps`
-    jump_steps : "pcg" (default) or "exact". From the rigid start PCG steps reach as low an energy as exact
-        ones (bench_network's walk loop-around, 256 nodes: 5-20 instead of 85-134 ms CPU, lower E on the
-        next frames); "exact" steps (without the rigid start, PCG steps can end in a worse local minimum) can
-        be cut short by `stop` and go on over the next frames
+    max_iterations : linear solves (steps tried) per frame at most; a jump frame gets twice as many
+    relative_tolerance : a frame ends when an accepted step lowers E by less than this fraction of it
+    initial_damping, max_damping : λ of the first step, and the λ at which a frame gives up on its step
+    method : "pcg" (default: the fast path, `fast/`) or "exact" (sparse Cholesky of the full system, the
+        reference)
+    preconditioner : for "pcg": "adaptive" (default) follows the CG iterations per step of the last frames:
+        the half cycle while steps need about one, else the two-level, with the coarse space joining in when
+        they need many (`GaussNewton._preconditioner`); "half_cycle", "two_level" or "block_jacobi" fix one
+        (`fast/preconditioner.py`)
+    cg_iterations, cg_tolerance : CG iterations per Gauss-Newton step at most, and the relative residual that
+        ends them earlier
+    jump : a frame whose starting E exceeds `jump` times the last solve's result is a jump: it starts from the
+        best rigid motion of the pose onto the targets when that fits better (`rigid_start.py`), and if it is
+        still a jump it gets twice the steps, of `jump_steps`
+    jump_steps : "pcg" (default) or "exact"; exact steps can be cut short by `Rig.solve`'s `stop` and go on
+        over the next frames
     backtracks : for "pcg": halvings of a step that raised E tried before solving for a new one
     curvature : for "pcg": add E_rot's own curvature on stretched columns to the Gauss-Newton blocks
-        (`krylov.stretch_curvature`): a Newton step where Gauss-Newton's would overshoot (two-level
-        preconditioner, 256 nodes, two skeletons: 3.1 instead of 4.2 steps per frame on the walk)
-    stop, remaining_tolerance : for "pcg", when a frame ends. "remaining" (default; on the half cycle's and the
-        two-level's frames, the coarse space's end by "decrease"): after a full step whose CG met its tolerance, when it gained less than
-        `relative_tolerance` or the next step would gain less than `remaining_tolerance` of E, estimated as
-        this step's gain times the ratio of the last two steps' gains (linear convergence; on a frame's first
-        step the ratio carried over from the last frames on the same preconditioner: the two-level's first steps
-        gain far more of E than the half cycle's). "decrease": on a step that gained less than
-        `relative_tolerance` (session 11's rule, the exact solve's): that step only confirms convergence, at a
-        full step's cost. Measured from the same start as a tightly converged exact solve (bench_core
-        `solve_agreement`), 256 nodes, two skeletons on the walk: 2.7 instead of 3.3 steps per frame, 27 %
-        less CPU, median gap 2.7e-4 instead of 1.2e-4 (the exact solve's own stop: 1.8e-4, p95 4.2e-3). On
-        the two-level's frames too (512 nodes, one skeleton, the adaptive choice: 3.9 instead of 4.25 steps per
-        frame; the live two-legs Spot case, coarse space mostly on: as many CG iterations as before, 1171
-        against 1160 in all, the same 12 frames out of steps)
-    reuse_factor : for "exact": keep the numeric factor while its steps keep lowering E
-    coarse_regions : for "pcg" with the half cycle, two-level or block Jacobi: a coarse space of this many regions' affine
-        motions in the preconditioner (`coarse_space.py`), for whole limbs turning; 0: none. "adaptive"
-        uses it only on frames whose steps need many CG iterations
+        (`fast/hessian.stretch_curvature`): a Newton step where Gauss-Newton's would overshoot
+    coarse_regions : for "pcg": a coarse space of this many regions' affine motions in the preconditioner
+        (`fast/coarse_space.py`), for whole limbs turning; 0: none
+    remaining_tolerance : for "pcg" on the half cycle's and the two-level's frames: a frame also ends after a
+        full step whose CG met its tolerance when the next step would gain less than this fraction of E,
+        estimated from this step's gain and the ratio of the last two (linear convergence); 0: only
+        `relative_tolerance` ends it
     """
 
     max_iterations: int = 10
-    relative_tolerance: float = 1e-3   # stop when an accepted step lowers E by less than this fraction
+    relative_tolerance: float = 1e-3
     initial_damping: float = 1e-6
     max_damping: float = 1e8
-    reuse_factor: bool = False
     method: str = "pcg"
     preconditioner: str = "adaptive"
     cg_iterations: int = 8
@@ -101,19 +73,15 @@ class SolverSettings:
     jump: float = 10.0
     jump_steps: str = "pcg"
     backtracks: int = 2
-    local_global: LocalGlobalSettings = LocalGlobalSettings()
     curvature: bool = True
     coarse_regions: int = 8
-    stop: str = "remaining"
     remaining_tolerance: float = 3e-4
 
     def __post_init__(self):
-        if self.method not in ("pcg", "exact", "local_global"):
-            raise ValueError(f"SolverSettings.method must be 'pcg', 'exact' or 'local_global', got {self.method!r}")
+        if self.method not in ("pcg", "exact"):
+            raise ValueError(f"SolverSettings.method must be 'pcg' or 'exact', got {self.method!r}")
         if self.jump_steps not in ("pcg", "exact"):
             raise ValueError(f"SolverSettings.jump_steps must be 'pcg' or 'exact', got {self.jump_steps!r}")
-        if self.stop not in ("remaining", "decrease"):
-            raise ValueError(f"SolverSettings.stop must be 'remaining' or 'decrease', got {self.stop!r}")
         if self.preconditioner not in PRECONDITIONERS:
             raise ValueError(f"SolverSettings.preconditioner must be one of {sorted(PRECONDITIONERS)}, "
                              f"got {self.preconditioner!r}")
@@ -166,14 +134,12 @@ class GaussNewton:
         self.energy_floor = (1e-10 * max(extent, 1e-300)) ** 2 * rows * max(system.weights.con, 1.0)
         self._active_key = None
         self._linear_data = None
-        self._factored = False
-        self._diag = None
         # damping carried over between frames, one per path: the scale suited to a full step and to
         # a truncated one differ
         self._lam = self._lam_exact = None
         self._cg_per_step = None  # CG iterations per Gauss-Newton step over the last frames ("adaptive")
-        # ratio of successive steps' decreases over the last frames, per preconditioner (stop="remaining"; a new
-        # dict on each update: bench_core restores it between timed runs)
+        # ratio of successive steps' decreases over the last frames, per preconditioner (the "remaining" rule; a
+        # new dict on each update, so a copy of the state stays as it was)
         self._contraction = {}
 
     @property
@@ -200,7 +166,6 @@ class GaussNewton:
         if key != self._active_key:
             self._linear_data = self.system.const_data + self.system.constraint_data(active)
             self._active_key = key
-            self._factored = False
         return self._linear_data
 
     def solve(self, x0: np.ndarray, targets: np.ndarray, active: np.ndarray,
@@ -209,12 +174,11 @@ class GaussNewton:
 
         `guess` (N, 12), e.g. a pose extrapolated from the last frames, replaces x0 as the start when
         its energy is lower; `before` (N, 12), the pose one solve before x0, gives the constant-velocity
-        guess 2 x0 − before (made inside the PCG frame's numba call: `pcg_frame.py`). `stop()`, asked after
+        guess 2 x0 − before (made inside the PCG frame's numba call: `fast/gauss_newton.py`). `stop()`, asked after
         each step of a jump frame's exact solve, says a newer
         frame is waiting: the frame then ends there (E lowered or, after a rejected step, the damping
         raised; not converged) and the next frames go on with exact steps until the jump's budget is spent
-        or it converges, so a live solve never holds one frame for the whole budget (a 253-node jump: 20
-        factorisations, ~100 ms). A `live_stop.Yield` also ends a PCG frame after an accepted step (read
+        or it converges, so a live solve never holds one frame for the whole budget. A `Yield` (`fast/live_stop.py`) also ends a PCG frame after an accepted step (read
         inside the numba loop); the next frame goes on from its pose. Either way `SolveReport.stopped`.
         """
         s = self.settings
@@ -262,8 +226,6 @@ class GaussNewton:
             budget = self._jump_left or 2 * self.settings.max_iterations
             report = self._solve_exact(x0, targets, active, budget, stop)
             self._jump_left = max(budget - report.iterations, 0) if report.stopped else 0
-        elif self.settings.method == "local_global":
-            report = self._solve_local_global(x0, targets, active)
         else:
             report = self._solve_pcg(x0, targets, active, stop=stop)
         self._last_energy = report.energy
@@ -284,12 +246,9 @@ class GaussNewton:
         lam = self._lam_exact if self._lam_exact is not None else s.initial_damping
         nu = 2.0
         iterations = factorisations = accepted = 0
-        reusable = s.reuse_factor and self._factored
         while iterations < max_iterations and energy > self.energy_floor:
-            data, grad = sysm.system(x, parts, None if reusable else linear, active)
-            if data is not None:
-                self._diag = data[sysm.diag_pos]
-            diag = self._diag
+            data, grad = sysm.system(x, parts, linear, active)
+            diag = data[sysm.diag_pos]
             floor = 1e-9 * max(diag.max(), 1e-300)
             # A Jacobi estimate of what a full step could still gain: when it is negligible the
             # pose is converged and no factorisation is spent confirming it.
@@ -298,50 +257,32 @@ class GaussNewton:
             stepped = False
             while iterations < max_iterations:
                 iterations += 1
-                reused = reusable
+                damped = data.copy()
+                damped[sysm.diag_pos] += lam * np.maximum(diag, floor)
+                factorisations += 1
                 try:
-                    if reused:
-                        delta = self.factor.solve(None, -grad)
-                    else:
-                        if data is None:
-                            data, _ = sysm.system(x, parts, linear, active)
-                            diag = self._diag = data[sysm.diag_pos]
-                            floor = 1e-9 * max(diag.max(), 1e-300)
-                        damped = data.copy()
-                        damped[sysm.diag_pos] += lam * np.maximum(diag, floor)
-                        factorisations += 1
-                        self._factored = False
-                        delta = self.factor.solve(sysm.matrix(damped), -grad)
-                        self._factored = True
+                    delta = self.factor.solve(sysm.matrix(damped), -grad)
                 except NotPositiveDefinite:
                     lam = min(max(lam * 10.0, 1e-6), s.max_damping)
                     continue
                 predicted = -(grad @ delta)  # the GN model's decrease, up to the damping term
                 if predicted <= 1e-3 * s.relative_tolerance * energy:
-                    if reused:
-                        reusable = False  # a stale factor may just point the wrong way
-                        continue
                     break
                 x_new = x + delta.reshape(x.shape)
                 parts_new = sysm.residuals(x_new, targets, active)
                 e_new = sysm.energy(parts_new)
                 if np.isfinite(e_new) and e_new < energy:
                     decrease = energy - e_new
-                    if not reused:
-                        # Nielsen's update from the gain ratio: a step the model predicted well
-                        # lowers the damping, a poor one keeps it
-                        rho = decrease / max(predicted, 1e-300)
-                        lam = max(lam * max(1.0 / 3.0, 1.0 - (2.0 * rho - 1.0) ** 3), 1e-12)
-                        nu = 2.0
+                    # Nielsen's update from the gain ratio: a step the model predicted well
+                    # lowers the damping, a poor one keeps it
+                    rho = decrease / max(predicted, 1e-300)
+                    lam = max(lam * max(1.0 / 3.0, 1.0 - (2.0 * rho - 1.0) ** 3), 1e-12)
+                    nu = 2.0
                     x, parts, energy = x_new, parts_new, e_new
                     energies.append(energy)
                     accepted += 1
-                    reusable = s.reuse_factor
                     stepped = True
                     break
-                if reused:
-                    reusable = False  # refresh the factor before raising the damping
-                    continue
                 lam *= nu
                 nu *= 2.0
                 if lam > s.max_damping:
@@ -385,8 +326,8 @@ class GaussNewton:
             k[1], k[2], k_blocks, k_diag, max_iterations, s.relative_tolerance, s.cg_iterations, s.cg_tolerance,
             lam, s.max_damping, self.energy_floor, self._rot, self._rig, self._node_fac, self._energies,
             s.backtracks, s.curvature, self._coarse if coarse else self._no_coarse, kc,
-            self._contraction.get(tier, 1.0), s.remaining_tolerance if s.stop == "remaining" and tier in REMAINING_TIERS
-            else 0.0, flag, after, self._grad)
+            self._contraction.get(tier, 1.0), s.remaining_tolerance if tier in REMAINING_TIERS else 0.0, flag, after,
+            self._grad)
         if iterations < 0:
             return SolveReport(x=x, energy=energy, iterations=-1, accepted=0, factorisations=0, energies=())
         self._lam = min(max(lam, s.initial_damping), 1e3)
@@ -410,12 +351,8 @@ class GaussNewton:
 
         Only frames that end within the usual step budget count: a jump's, or one that runs out of steps,
         is limited by the Gauss-Newton steps (a pose far from the warm start, the damping high), not by CG,
-        and the coarse space does not help there. Measured on the capsule body with two skeletons each
-        driving one leg, 7 frames apart (bench_core's `solve_tail`): after the loop-around, frames out of
-        steps at 2-2.5 CG iterations per step brought it in; with it they took the same 10 steps at 2.6-4.8
-        CG iterations each (2.1-3 with its factor refreshed every step), which kept it on: 22-32 instead of
-        12-18 ms CPU a frame. Its gain is in steps rather than in CG iterations per step (one arm: 2 steps a
-        frame instead of 3-4, at 2-3.5 CG iterations each either way).
+        and the coarse space does not help there. Its gain is in fewer steps per frame rather than fewer CG
+        iterations per step.
         """
         self._cg_per_step = rate if self._cg_per_step is None else 0.5 * (self._cg_per_step + rate)
         if not self.settings.coarse_regions:
@@ -426,36 +363,17 @@ class GaussNewton:
             self._coarse_on = self._cg_per_step > self.COARSE_ON
 
     def _preconditioner(self) -> tuple[int, bool]:
-        """The preconditioner for this frame, and whether the coarse space (`coarse_space.py`) is in it.
+        """The preconditioner for this frame, and whether the coarse space (`fast/coarse_space.py`) is in it.
 
         "adaptive" follows the CG iterations per Gauss-Newton step of the last frames (`_follow`; both
         designs need about as many on the same frames, so the choice does not flip with itself). At about
-        one (the walk with two skeletons: 1.2) the half cycle: one pair of triangular solves per step
-        instead of two. Above 1.5 the two-level, whose steps need no restart (512 nodes and one skeleton:
-        1.45-1.5 per step, 3.6 steps per frame against the half cycle's 4.8; measured, the two about even in
-        time, the half cycle 2-4 % slower in most runs). Above two, graph-wide modes are what CG crawls on
-        (one arm possessing a body: 2.4-3.3) and the coarse space of `coarse_regions` regions joins the
-        two-level: there 2.1 instead of 3.3-4.8 steps per frame, 3.2 instead of 4.1-4.5 CPU ms at 256
-        nodes, and the exact solve's energies to 2e-5 instead of 1.2-1.4e-3 (median). On the walk with two
-        skeletons it would cost 0.2 ms per step for 0.3 fewer steps, so it stays out there."""
+        one the half cycle: one pair of triangular solves per step instead of two. Above
+        `ADAPTIVE_CG_PER_STEP` the two-level, whose steps need no restart. Above `COARSE_ON` graph-wide modes
+        are what CG crawls on (one arm possessing a body) and the coarse space joins the two-level; where
+        steps need about one CG iteration it would cost more per step than it saves in steps."""
         name, rate = self.settings.preconditioner, self._cg_per_step
         if name != "adaptive":
-            return PRECONDITIONERS[name], self.settings.coarse_regions > 0 and name in ("half_cycle", "two_level", "block_jacobi")
+            return PRECONDITIONERS[name], self.settings.coarse_regions > 0
         if rate is not None and rate > self.ADAPTIVE_CG_PER_STEP:
             return TWO_LEVEL, self._coarse_on
         return HALF_CYCLE, False
-
-    def _solve_local_global(self, x0: np.ndarray, targets: np.ndarray, active: np.ndarray) -> SolveReport:
-        """Local/global iterations (`local_global.py`), then the PCG loop from their result unless they
-        converged."""
-        before = self.split.factorisations
-        x, energy, iterations, accepted, energies, converged = local_global_frame(
-            self.system, self.split.frame_data(active), self.settings.local_global, x0,
-            targets, active, self.energy_floor, self._rot, self._rig, self._node_fac)
-        if converged:
-            return SolveReport(x=x, energy=energy, iterations=iterations, accepted=accepted, energies=energies,
-                               factorisations=self.split.factorisations - before)
-        rest = self._solve_pcg(x, targets, active)
-        return SolveReport(x=rest.x, energy=rest.energy, iterations=iterations + rest.iterations,
-                           accepted=accepted + rest.accepted, energies=energies + rest.energies[1:],
-                           factorisations=self.split.factorisations - before, cg_iterations=rest.cg_iterations)

@@ -8,7 +8,7 @@ import numpy as np
 from ..deform.constraints import PointConstraints
 from ..deform.energy import EnergyWeights
 from ..deform.normal_equations import NormalEquations
-from ..deform.pcg_frame import all_finite
+from ..deform.fast.gauss_newton import all_finite
 from ..deform.pose import GraphPose
 from ..deform.solver import GaussNewton, SolverSettings, SolveReport
 from ..errors import AttachError, BadSkeletonError

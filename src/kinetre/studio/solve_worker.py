@@ -18,7 +18,7 @@ import time
 
 import numpy as np
 
-from ..deform.live_stop import Yield
+from ..deform.fast.live_stop import Yield
 from ..deform.pose import GraphPose
 from ..deform.solver import SolverSettings
 from ..errors import KinetreError

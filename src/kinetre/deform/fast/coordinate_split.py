@@ -10,7 +10,7 @@ unknowns (R_j[a, :], t_j[a]),
 and K (4N × 4N) depends only on the graph, the constraint carriers and the set of tracked constraints,
 never on the pose. We factor K_σ = K + σ I_R once per tracked set (σ on the R rows: the rotation
 average of E_rot's 9×9 block is exactly 2 w_rot I, E_rig's R_j-R_j block is w_rig I per bridge), and use
-it to precondition CG on the true Gauss-Newton system (`krylov.py`).
+it to precondition CG on the true Gauss-Newton system (`cg.py`, `preconditioner.py`).
 """
 from __future__ import annotations
 
@@ -20,8 +20,8 @@ import numpy as np
 from scipy.sparse import csc_matrix, csr_matrix, diags, identity
 
 from .coarse_space import prolongation, regions
-from .factor import NotPositiveDefinite
-from .normal_equations import NormalEquations, _positions, _scatter
+from ..factor import NotPositiveDefinite
+from ..normal_equations import NormalEquations, positions, scatter
 
 try:  # optional: the `cholmod` extra
     from sksparse.cholmod import analyze
@@ -72,7 +72,7 @@ class CoordinateSplit:
         self.sigma = np.zeros((nodes, 4))
         self.sigma[:, :3] = per_node[:, None]
         self.sigma = self.sigma.reshape(-1)
-        self.shift = np.repeat(self.sigma, 3)  # σ in the coordinate layout of `krylov.py`
+        self.shift = np.repeat(self.sigma, 3)  # σ in the coordinate layout of `hessian.py`
 
         def structural(m):
             m = m.copy()
@@ -84,9 +84,9 @@ class CoordinateSplit:
         pattern.sort_indices()
         self.indptr, self.indices = pattern.indptr.astype(np.int64), pattern.indices.astype(np.int64)
         self._indptr32, self._indices32 = pattern.indptr.astype(np.int32), pattern.indices.astype(np.int32)
-        self.const_data = _scatter(self.indptr, self.indices, 4 * nodes, k_const)
-        self.diag_pos = _positions(self.indptr, self.indices, 4 * nodes, np.arange(4 * nodes), np.arange(4 * nodes))
-        # K in 4 × 4 node blocks for `krylov._hessian_times` (88 % of their entries are in K's pattern): block
+        self.const_data = scatter(self.indptr, self.indices, 4 * nodes, k_const)
+        self.diag_pos = positions(self.indptr, self.indices, 4 * nodes, np.arange(4 * nodes), np.arange(4 * nodes))
+        # K in 4 × 4 node blocks for `hessian.hessian_times` (88 % of their entries are in K's pattern): block
         # row pointers, block columns, and where each pattern entry goes in the blocks (B × 16, row-major)
         row = np.repeat(np.arange(4 * nodes), np.diff(self.indptr))  # symmetric: CSC columns are CSR rows
         key, block = np.unique((row // 4) * nodes + self.indices // 4, return_inverse=True)
@@ -121,11 +121,11 @@ class CoordinateSplit:
         """K's values on the pattern for the per-constraint scales `active` (L,)."""
         s2 = np.asarray(active, dtype=np.float64) ** 2
         m = self.j_con.T @ (self.j_con.multiply(s2[:, None]).tocsr())
-        return self.const_data + self.w_con * _scatter(self.indptr, self.indices, 4 * self.nodes, m)
+        return self.const_data + self.w_con * scatter(self.indptr, self.indices, 4 * self.nodes, m)
 
     def for_active(self, active: np.ndarray):
         """(K in 4 × 4 node blocks (block row pointers (N + 1,), block columns, blocks (B, 16) row-major),
-        factor tuple for `krylov`, K's (N, 4, 4) diagonal blocks) for this tracked set."""
+        factor tuple for `preconditioner.py`, K's (N, 4, 4) diagonal blocks) for this tracked set."""
         return self._for_active(active)[:3]
 
     def frame_data(self, active: np.ndarray):
@@ -180,7 +180,7 @@ class CoordinateSplit:
         (`node_order`), in 4 × 4 blocks: (block row pointers (N + 1,), block columns, strictly lower blocks
         (B, 16) row-major, inverses of the diagonal blocks (N, 16), node_order (N,), shift σ (12N,) in the
         coordinate layout). A block times a node's 12 coordinate-layout entries is 48 multiply-adds on
-        contiguous data where the scalar CSR factor read an index per 3 (`krylov._coordinate_solve`: 512
+        contiguous data where the scalar CSR factor read an index per 3 (`preconditioner.coordinate_solve`: 512
         nodes, 185-200 against 400-510 µs, although the blocks hold 28 % more entries than the scalar
         factor's own ordering fills)."""
         a = csc_matrix(matrix[self._perm][:, self._perm])

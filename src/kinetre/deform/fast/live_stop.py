@@ -2,7 +2,7 @@
 
 The flag is one byte that whoever receives frames sets, possibly in another process (the studio's solve
 worker shares it through `multiprocessing.RawValue`), read as a numpy uint8 view so that the numba Gauss-
-Newton loop (`newton_krylov.py`) reads it between its steps as well as the Python loops. The share is
+Newton loop (`gauss_newton.py`) reads it between its steps as well as the Python loops. The share is
 counted on the solving thread's CPU clock (CLOCK_THREAD_CPUTIME_ID, `time.thread_time`'s clock): wall time
 would count the waits for a core on a busy machine. numba has no such clock, so `thread_cpu_time` calls
 libc's clock_gettime by name (an external symbol, not a ctypes pointer: the kernels stay cacheable);
@@ -19,7 +19,7 @@ from numba import types
 from numba.core import cgutils
 from numba.extending import intrinsic
 
-from ..jit import njit
+from ...jit import njit
 
 CLOCK = getattr(time, "CLOCK_THREAD_CPUTIME_ID", 3)  # Linux's value when the platform does not say
 NO_FLAG = np.zeros(0, np.uint8)  # no stop: the offline solve

@@ -1,42 +1,37 @@
-"""The damped Gauss-Newton loop of `solver.py` with its steps from `krylov.pcg`, all in one numba call.
+"""The fast path's frame: the damped Gauss-Newton loop of `solver.py` with its steps from truncated PCG
+(`cg.py`), start and jump test included, all in one numba call (at a few ms per frame the Python bookkeeping
+around a few iterations would be a large part of it).
 
-Same rules as the exact loop, with two differences measured on the walk (`bench_core`): a step that
-does not lower E is first halved (up to `backtracks` times, an energy each) before λ grows and a new
-step is solved for; and only a full step whose CG met its tolerance can end the loop by lowering E
-by less than `relative_tolerance` of it (a truncated or halved step's small decrease says nothing
-about convergence: with one arm possessing, stopping on them ended 10 % above the exact minimum). The
-loop also ends after `max_iterations` linear solves or when a Jacobi estimate of the remaining
-decrease is negligible. Kept in numba because at 2 ms per frame the Python bookkeeping of a few
-iterations would be most of it.
+Same rules as the exact loop, with two differences: a step that does not lower E is first halved (up to
+`backtracks` times, an energy each) before λ grows and a new step is solved for; and only a full step whose
+CG met its tolerance can end the loop by lowering E by less than `relative_tolerance` of it (a truncated or
+halved step's small decrease says nothing about convergence). Such a step also ends it when the next step
+would gain less than `remaining_tolerance` of E (the "remaining" rule, below). The loop also ends after
+`max_iterations` linear solves or when a Jacobi estimate of the remaining decrease is negligible.
 """
 from __future__ import annotations
 
 import numpy as np
 
-from ..jit import njit
-from .gradient import energy_gradient
+from ...jit import njit
+from .cg import pcg
 from .coarse_space import coarse_factor
-from .krylov import BLOCK_JACOBI, COORDINATE, local_blocks, node_factors, pcg, stretch_curvature
+from .energy import energy_gradient
+from .hessian import local_blocks, stretch_curvature
 from .live_stop import should_stop
+from .preconditioner import BLOCK_JACOBI, node_factors
 
-
-# The coarse space serves only a frame's first two linear solves, each with its factor made afresh. It carries
-# the large, slow motions (a whole limb turning) of a frame's first steps. Steps after those mostly creep (a
-# pose the targets cannot quite reach: Gauss-Newton converges linearly, ~0.1-1 % of E a step), and there it
-# costs a factor and a coarse solve per CG iteration for nothing. A factor made once per frame went stale
-# as the pose moved: CG then ran to its cap, and a frame that does not converge in CG cannot stop before its
-# last step. bench_network's live solve replayed (two legs on Spot, 253 nodes, 760 frames; thread CPU ms
-# per frame, median / p99): factor once a frame, every step 4.4-5.4 / 25.7-29.2 (72 frames out of steps,
-# 14.6 CG iterations a frame); refreshed, every step 4.6-5.4 / 24.8-27.7; refreshed, first two steps
-# 4.5 / 19.0 (53, 9.7) against 5.6 / 19.6 (60, 14.1) without the coarse space in the same run. One step
-# only loses the one-arm agreement (median 1.7e-3 above exact; two: passes). Block Jacobi keeps it on every
-# step: nothing else there carries the graph-wide coupling.
+# The coarse space serves only a frame's first two linear solves, each with its factor made afresh: it carries
+# the large, slow motions (a whole limb turning) of a frame's first steps. The steps after those mostly creep
+# (Gauss-Newton converging linearly on a pose the targets cannot quite reach), where it would cost a factor and
+# a coarse solve per CG iteration for nothing; a factor kept for the whole frame goes stale as the pose moves,
+# and CG then runs to its cap. With one solve only, frames end measurably above the exact minimum when one arm
+# possesses a body. Block Jacobi keeps it on every step: nothing else there carries the graph-wide coupling.
 COARSE_STEPS = 2
 
-
-# the least ratio of successive steps' gains the "remaining" stop rule assumes. Without it, one arm possessing a
-# 256-node body: its frames' second steps gain 1e-3 of the first, the carried ratio fell to 0, and frames ended
-# after one step 5-11 % above the exact solve; d₃/d₂ there is 0.05-0.5
+# the least ratio of successive steps' gains the "remaining" rule assumes: a frame's first step (the tracked
+# motion) can gain far more than the slow modes after it, and a ratio carried over from such frames would end
+# the next ones after one step, well above the minimum
 RATIO_FLOOR = 0.1
 
 
@@ -47,11 +42,11 @@ def gauss_newton_pcg(x, g, edges, con_nodes, con_weights, con_points, targets, a
                      energy_floor, rot, rig, node_fac, energies, backtracks, curvature, coarse, kc,
                      contraction, remaining_tolerance, stop, stop_after, grad, start_energy):
     """Minimise E from x (N, 12, updated in place), whose E is `start_energy` and gradient `grad` (12N) when
-    the caller has them (`pcg_frame.warm_start`; NaN: computed here into `grad`). Returns (E, iterations,
+    the caller has them (`warm_start`; NaN: computed here into `grad`). Returns (E, iterations,
     accepted, CG iterations,
     number of entries written to `energies` (E after each accepted step, from the initial E), λ, the last
     ratio of two successive accepted steps' decreases seen in this frame (-1: none), whether `stop` ended it).
-    `stop` (uint8, shape (1,), or (0,): none) and `stop_after`: a live solve's `live_stop.Yield`; the frame
+    `stop` (uint8, shape (1,), or (0,): none) and `stop_after`: a live solve's `Yield` (`live_stop.py`); the frame
     ends after an accepted step, not converged, once stop[0] is set and the thread's CPU clock is past
     `stop_after` (E lowered; the next frame goes on from this pose).
     `coarse` = (factor (12m, 12m), region, offsets) and kc: the coarse space of `coarse_space.py` (a factor of
@@ -116,8 +111,7 @@ def gauss_newton_pcg(x, g, edges, con_nodes, con_weights, con_points, targets, a
             iterations += 1
             for i in range(m):
                 damp[i] = lam * diag[i]
-            if kind != COORDINATE:
-                node_factors(k_blocks, rot, rig, bridges, damp, node_fac)
+            node_factors(k_blocks, rot, rig, bridges, damp, node_fac)
             # λ below 1e-2 barely changes H's diagonal (λ diag(H) is added to it): not worth a refactor
             use = coarse if iterations <= COARSE_STEPS or kind == BLOCK_JACOBI else no_coarse
             if use[0].shape[0] and not (0.25 * (coarse_lam + 1e-2) <= lam + 1e-2 <= 4.0 * (coarse_lam + 1e-2)):
@@ -194,3 +188,54 @@ def gauss_newton_pcg(x, g, edges, con_nodes, con_weights, con_points, targets, a
             stopped = True
             break
     return energy, iterations, accepted, cg_total, count, lam, ratio_seen, stopped
+
+
+@njit(cache=True)
+def warm_start(x, x0, before, g, edges, con_nodes, con_weights, con_points, targets, active, bridges,
+               w_rot, w_reg, w_con, w_rig, grad):
+    """x (N, 12) ← the frame's start: the last pose x0, or the constant-velocity guess 2 x0 − before when
+    its E is lower (`before` of shape (0, 12): no guess). Returns its E; `grad` ← its gradient (12N)."""
+    if before.shape[0]:
+        for j in range(x.shape[0]):
+            for u in range(12):
+                x[j, u] = 2.0 * x0[j, u] - before[j, u]
+        e_guess = energy_gradient(x, g, edges, con_nodes, con_weights, con_points, targets, active, bridges,
+                                  w_rot, w_reg, w_con, w_rig, grad, True)
+        e0 = energy_gradient(x0, g, edges, con_nodes, con_weights, con_points, targets, active, bridges,
+                             w_rot, w_reg, w_con, w_rig, grad[:0], False)
+        if e_guess < e0:
+            return e_guess
+    x[:] = x0
+    return energy_gradient(x, g, edges, con_nodes, con_weights, con_points, targets, active, bridges,
+                           w_rot, w_reg, w_con, w_rig, grad, True)
+
+
+@njit(cache=True)
+def pcg_frame(x, x0, before, threshold, g, edges, con_nodes, con_weights, con_points, targets, active, bridges,
+              w_rot, w_reg, w_con, w_rig, kind, fac, kp, ki, kx, k_blocks, k_diag,
+              max_iterations, relative_tolerance, cg_iterations, cg_tolerance, lam, max_damping,
+              energy_floor, rot, rig, node_fac, energies, backtracks, curvature, coarse, kc,
+              contraction, remaining_tolerance, stop, stop_after, grad):
+    """`warm_start` into x, then `gauss_newton_pcg` from it, whose 8-tuple it returns; a start whose E
+    exceeds `threshold` is a jump (`GaussNewton.solve` in `solver.py`): then x holds the start and the tuple is
+    (its E, -1, 0, 0, 0, λ, -1, False) without a step taken."""
+    energy = warm_start(x, x0, before, g, edges, con_nodes, con_weights, con_points, targets, active, bridges,
+                        w_rot, w_reg, w_con, w_rig, grad)
+    if energy > threshold:
+        return energy, -1, 0, 0, 0, lam, -1.0, False
+    return gauss_newton_pcg(x, g, edges, con_nodes, con_weights, con_points, targets, active, bridges,
+                            w_rot, w_reg, w_con, w_rig, kind, fac, kp, ki, kx, k_blocks, k_diag,
+                            max_iterations, relative_tolerance, cg_iterations, cg_tolerance, lam, max_damping,
+                            energy_floor, rot, rig, node_fac, energies, backtracks, curvature, coarse, kc,
+                            contraction, remaining_tolerance, stop, stop_after, grad, energy)
+
+
+@njit(cache=True)
+def all_finite(x):
+    """Whether every entry of the pose x (N, 12) is finite (`Rig.solve`'s check on each result: numpy's
+    isfinite and all, on the caches the frame left cold, cost 40 µs of a 2 ms frame)."""
+    for j in range(x.shape[0]):
+        for u in range(x.shape[1]):
+            if not np.isfinite(x[j, u]):
+                return False
+    return True

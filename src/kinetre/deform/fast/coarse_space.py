@@ -1,7 +1,7 @@
 """A coarse space of region-affine motions for the PCG preconditioner (ours): a few dozen extra unknowns
 that carry the graph-wide slow modes, whole limbs or a whole unconstrained body turning.
 
-Both parts of the preconditioner in `krylov.py` are poor on these modes: K_σ's shift σ I prices every
+Both parts of the preconditioner in `preconditioner.py` are poor on these modes: K_σ's shift σ I prices every
 change of R_j at 2 w_rot although a rotation costs E_rot nothing, and the node blocks see one node at a time.
 When few nodes are constrained (one arm possessing a body) CG then crawls, 10-40 iterations on some steps.
 
@@ -14,7 +14,7 @@ pose is one (F = [ω]× R for a region turned by R), as is a translation. With P
 rig and tracked set (`coordinate_split.py`); the node blocks, bridge blocks and damping are added per
 Gauss-Newton step (`coarse_factor`), a dense Cholesky of 12m unknowns.
 
-Coarse layout, as `krylov.py`'s: c[12 r + 3 b + a] is F_r[a, b] (b < 3) or b_r[a] (b = 3).
+Coarse layout, as `hessian.py`'s: c[12 r + 3 b + a] is F_r[a, b] (b < 3) or b_r[a] (b = 3).
 """
 from __future__ import annotations
 
@@ -22,7 +22,7 @@ import numpy as np
 from scipy.sparse import csr_matrix
 from scipy.sparse.csgraph import dijkstra
 
-from ..jit import njit
+from ...jit import njit
 
 
 def regions(nodes: np.ndarray, edges: np.ndarray, count: int) -> tuple[np.ndarray, np.ndarray]:
@@ -67,7 +67,7 @@ def prolongation(region: np.ndarray, offsets: np.ndarray, count: int) -> csr_mat
 @njit(cache=True)
 def coarse_factor(kc, region, offsets, rot, rig, bridges, damp, out):
     """out (12m, 12m) ← the Cholesky factor (lower, reciprocal diagonal) of Pᵀ H P, from kc = P_cᵀ K P_c
-    (4m, 4m) and the node blocks `rot`, bridge blocks `rig` and damping `damp` of `krylov.py`."""
+    (4m, 4m) and the node blocks `rot`, bridge blocks `rig` and damping `damp` of `hessian.py`."""
     m4 = kc.shape[0]
     out[:] = 0.0
     for u in range(m4):

@@ -1,15 +1,15 @@
-"""Eq. 8 energy and its Gauss-Newton gradient Σ w Jᵀr in one numba pass over nodes, edges, constraints
-and bridges (the per-iteration work of the "pcg" solver; `normal_equations.py` is the sparse-matrix
-form it is tested against).
+"""The fast kernel of the energy (Eq. 8, its terms Eq. 3, 4, 5, 7 as defined in `deform/energy.py`) and its
+Gauss-Newton gradient Σ w Jᵀr, in one numba pass over nodes, edges, constraints and bridges: the per-step work
+of the fast path. The tests check it against the definitions and the reference Jacobians.
 
-The gradient comes out in the coordinate layout of `krylov.py` (R_j[a, b] at 12 j + 3 b + a).
+The gradient comes out in the coordinate layout of `hessian.py` (R_j[a, b] at 12 j + 3 b + a).
 """
 from __future__ import annotations
 
 import numpy as np
 
-from ..jit import njit
-from .normal_equations import _ROT_P, _ROT_Q
+from ...jit import njit
+from ..jacobian import ROT_P, ROT_Q
 
 
 @njit(cache=True)
@@ -23,8 +23,8 @@ def energy_gradient(x, g, edges, con_nodes, con_weights, con_points, targets, ac
     for j in range(n):  # Eq. 3
         o = 12 * j
         for r in range(6):
-            p = _ROT_P[r]
-            q = _ROT_Q[r]
+            p = ROT_P[r]
+            q = ROT_Q[r]
             s = x[j, p] * x[j, q] + x[j, 3 + p] * x[j, 3 + q] + x[j, 6 + p] * x[j, 6 + q]
             if p == q:
                 s -= 1.0
