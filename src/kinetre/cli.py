@@ -125,7 +125,7 @@ def _animate(args, stats: dict | None) -> int:
     import numpy as np
 
     import kinetre
-    from .motion.fit import fit_take
+    from .animation import AnimateSettings, animate
     from .motion.source import resample
 
     out_ext = _ext(args.output, ANIMATE_OUTPUTS)
@@ -171,102 +171,53 @@ def _animate(args, stats: dict | None) -> int:
     say(f"motion {motion_label}: {take.model.name}, {len(take.model.joints)} joints, {len(take)} frames "
         f"at {take.fps:g} fps")
 
-    rigging = _bar(3, "rigging", args.quiet)
-    rigging.unit = "step"
-    graph = kinetre.build_graph(mesh, nodes=args.nodes, seed=args.seed, weights=False)
-    # the skinning weights (only the mesh output needs them) are computed on another core meanwhile
-    weighing = None if out_ext in (".bvh", ".kinetre.jsonl") else _weigh_in_background(graph, mesh)
-    rigging.update(1)
-    lap("graph")
-    fit_mesh = args.fit == "mesh"
-    if take.model == kinetre.KINECT20:  # a person: face +Z, scale to height
-        if args.fit in ("height", "length"):
-            raise UsageError("--fit height|length applies to non-human skeletons (people are fitted by height)")
-        yaw = (args.yaw or 0.0) + (180.0 if args.flip else 0.0)
-        placement = fit_take(take, mesh, args.bind_frame, fit_mesh=fit_mesh, yaw=yaw)
-        notes: tuple[str, ...] = ()
-    else:  # any other skeleton: from the two shapes
-        from .motion.align import fit_shapes
-        shape = fit_shapes(take, mesh, args.bind_frame, fit=args.fit if args.fit in ("height", "length")
-                           else "auto", yaw=args.yaw or 0.0, flip=args.flip, fit_mesh=fit_mesh,
-                           nodes=graph.nodes)
-        placement, notes = shape.placement, shape.notes
+    settings = AnimateSettings(nodes=args.nodes, seed=args.seed, subset=_subset(args.subset),
+                               bind_frame=args.bind_frame, solver=args.solver, fit=args.fit, yaw=args.yaw,
+                               flip=args.flip, solve=out_ext not in (".bvh", ".kinetre.jsonl"))
+    with _bar(3, "rigging", args.quiet) as rigging, _bar(len(take), "solving", args.quiet) as solving:
+        rigging.unit = "step"
+        result = animate(mesh, take, settings, on_frame=lambda i: solving.update(1),
+                         on_step=lambda name: rigging.update(1))
+    stats.update(result.seconds)
+    clock, cpu_clock = time.perf_counter(), time.process_time()
+    placement, rig = result.placement, result.rig
+    shape = result.shape_fit
+    if shape is not None:
         say(f"fitted from the shapes: front by {shape.front}, turned {shape.turn:.0f} deg, size ratios "
             f"height {shape.ratios[0]:.3g} length {shape.ratios[1]:.3g}, {100 * shape.inside:.0f} % of the "
             f"bones inside the mesh")
-    rigging.update(1)
-    placed = placement.take(take)
-    solve_graph = placement.graph(graph)
-    bind = placed.frame(args.bind_frame)
-    from .deform.solver import SolverSettings
-    settings = SolverSettings() if args.solver is None else SolverSettings(method=args.solver)
-    rig = kinetre.attach(solve_graph, bind, subset=_subset(args.subset), settings=settings)
-    rigging.update(1)
-    rigging.close()
     att = rig.attachments[0]
     joints = [take.model.joints[j] for j in rig.attached_joints[0]]
+    bind_height = placement.take(take).frame(args.bind_frame).height
     say(f"attached {len(joints)} joint(s) ({', '.join(joints) or 'none'}), {int((att.bone >= 0).sum())} bone "
-        f"samples, {len(rig.nodes_used)} of {graph.node_count} nodes (mesh scaled by {placement.mesh_scale:.4g} "
-        f"to the {bind.height:.2f} m skeleton)")
-    for note in notes + _attach_notes(take, rig, args.subset):
+        f"samples, {len(rig.nodes_used)} of {rig.graph.node_count} nodes (mesh scaled by "
+        f"{placement.mesh_scale:.4g} to the {bind_height:.2f} m skeleton)")
+    for note in result.notes:
         print(f"kinetre: poor match: {note}", file=sys.stderr)
-    lap("attach")
 
-    out_take = placed.transformed(placement.output_scale)
+    out_take = result.take
     if out_ext in (".bvh", ".kinetre.jsonl"):
         _write_skeleton(args.output, out_ext, out_take)
     else:
-        poses = []
-        with _bar(len(placed), "solving", args.quiet) as bar:
-            for i in range(len(placed)):
-                poses.append(placement.output_pose(rig.solve(placed.frame(i))))
-                bar.update(1)
-        lap("solve")
-        wait = time.perf_counter()
-        graph, stats["weights_cpu"] = weighing.result()
-        stats["weights_wait_s"] = time.perf_counter() - wait
-        mesh_out = placement.mesh(mesh) if fit_mesh else mesh
-        graph_out = placement.graph(graph) if fit_mesh else graph
+        poses = list(result.poses)
         if out_ext in (".glb", ".gltf"):
             from .export.gltf import write_gltf
-            write_gltf(args.output, mesh_out, graph_out, poses, take.fps)
+            write_gltf(args.output, result.mesh, result.graph, poses, take.fps)
         else:
             from .export.video import write_video
             skeletons = [[out_take.frame(i)] for i in range(len(out_take))] if args.skeleton else None
             with _bar(len(poses), "rendering", args.quiet) as bar:
-                write_video(args.output, mesh_out, graph_out, poses, take.fps, skeletons=skeletons,
+                write_video(args.output, result.mesh, result.graph, poses, take.fps, skeletons=skeletons,
                             on_frame=lambda i: bar.update(1))
         energy = np.array([p.energy for p in poses], dtype=float)
         solved = energy[np.isfinite(energy)]  # held frames (nothing tracked) have no energy
         say(f"solved {len(poses)} frames, median energy {np.median(solved) if solved.size else float('nan'):.3g}")
     lap("write")
-    stats.update(vertices=len(mesh.vertices), nodes=graph.node_count, frames=len(take),
+    stats.update(vertices=len(mesh.vertices), nodes=rig.graph.node_count, frames=len(take),
                  total_s=time.perf_counter() - t0)
     stages = ", ".join(f"{k[:-2]} {v:.1f}" for k, v in stats.items() if k.endswith("_s") and k != "total_s")
     say(f"wrote {args.output} ({len(take)} frames at {take.fps:g} fps; {stats['total_s']:.1f} s: {stages})")
     return 0
-
-
-def _weigh_in_background(graph, mesh):
-    """A future of (`graph` with `mesh`'s skinning weights, the CPU seconds they took), computed in a thread:
-    the weights kernels release the GIL, so on a machine with a free core they cost no time beside the
-    attach and solve (about 0.2 s of a 3 s command on a 386k-vertex mesh)."""
-    from concurrent.futures import ThreadPoolExecutor
-
-    from .graph.build import with_weights
-    from .graph.weights import skinning_weights
-
-    def weigh():
-        cpu = time.thread_time()
-        return with_weights(graph, mesh), time.thread_time() - cpu
-
-    # load the kernels here first: the thread then runs compiled code only, never numba's compiler or an
-    # import, which the main thread may be doing at the same time
-    skinning_weights(mesh.vertices[:1], mesh.normals[:1], graph.nodes, graph.normals, graph.radius)
-    pool = ThreadPoolExecutor(1, thread_name_prefix="kinetre-weights")
-    future = pool.submit(weigh)
-    pool.shutdown(wait=False)  # the thread ends with its one task
-    return future
 
 
 def _load_motions(args):
@@ -283,18 +234,6 @@ def _load_motions(args):
     jmap = read_joint_map(args.map)
     takes = [_load_motion(m, args.scale, as_kinect=not args.own_skeleton) for m in motions]
     return join_takes(takes, jmap), f"{' + '.join(motions)} via {args.map}"
-
-
-def _attach_notes(take, rig, subset) -> tuple[str, ...]:
-    """Words for a poor attachment: few of the (wanted) joints within reach of the mesh."""
-    if subset:
-        return ()
-    wanted = len(take.model.joints)
-    got = len(rig.attached_joints[0])
-    if got >= 0.5 * wanted:
-        return ()
-    return (f"only {got} of {wanted} joints lie within reach of the mesh: try --yaw 90, --flip, "
-            f"--fit height|length or more --nodes",)
 
 
 def _write_skeleton(path: str, ext: str, take) -> None:

@@ -43,3 +43,7 @@ class BadAvatarError(KinetreError):
 
 class BadModelError(KinetreError):
     """A tracking model file is missing, unknown, or not byte-identical to the published one."""
+
+
+class BadSettingsError(KinetreError):
+    """A setting (an API argument or the command-line option behind it) that does not fit the input."""

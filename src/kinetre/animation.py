@@ -1,0 +1,206 @@
+"""A mesh driven by a take, end to end: graph, placement, attachment, one solve per frame.
+
+    >>> import kinetre
+    >>> mesh = kinetre.load_mesh("chair.obj")                                  # doctest: +SKIP
+    >>> take = kinetre.load_take("walk.bvh")                                   # doctest: +SKIP
+    >>> result = kinetre.animate(mesh, take, kinetre.AnimateSettings(nodes=256))  # doctest: +SKIP
+    >>> vertices = kinetre.skin(result.mesh, result.graph, result.poses[10])  # doctest: +SKIP
+
+`kinetre animate` is this call with the file reading and writing around it.
+"""
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+
+from .deform.pose import GraphPose
+from .errors import BadSettingsError
+from .graph.graph import DeformationGraph
+from .mesh.mesh import Mesh
+from .motion.fit import Placement
+from .motion.take import Take
+from .skeleton.rig import Rig
+
+FITS = (None, "mesh", "height", "length")
+SOLVERS = (None, "pcg", "local_global", "exact")
+
+
+@dataclass(frozen=True)
+class AnimateSettings:
+    """How `animate` rigs and solves.
+
+    Attributes
+    ----------
+    nodes : deformation-graph nodes; seed : their sampling seed
+    subset : joint names or subset names that drive (None: every joint)
+    bind_frame : the take's frame that is the bind (rest) pose
+    solver : per-frame solver ("pcg", "local_global", "exact"; None: the library's default)
+    fit : None (the motion is sized to the mesh), "mesh" (the mesh is resized to the skeleton in the
+        output), "height" or "length" (size a non-human source to the mesh by that extent)
+    yaw : degrees about +Y the skeleton is turned (people: from the mesh front +Z; other skeletons: added
+        to the facing found from the shapes); flip : turn it round
+    solve : solve every frame and skin the graph (False: only place the skeleton, for skeleton outputs)
+    """
+
+    nodes: int = 128
+    seed: int = 0
+    subset: str | tuple[str, ...] | None = None
+    bind_frame: int = 0
+    solver: str | None = None
+    fit: str | None = None
+    yaw: float | None = None
+    flip: bool = False
+    solve: bool = True
+
+
+@dataclass(frozen=True)
+class Animation:
+    """What `animate` made.
+
+    Attributes
+    ----------
+    mesh : the mesh in the output's units (resized to the skeleton with `fit="mesh"`)
+    graph : its deformation graph with skinning weights (without them when nothing was solved)
+    poses : one GraphPose per take frame, in the output's units (empty when nothing was solved)
+    take : the placed skeleton in the output's units, one frame per pose
+    placement : where the take went relative to the mesh
+    rig : the possessed graph (in the solve frame)
+    shape_fit : the shapes' fit for a non-human source (None for a person)
+    notes : warnings in words about a poor match
+    seconds : wall and CPU seconds per stage ("graph_s", "graph_cpu", "attach_s", ..., "weights_cpu")
+    """
+
+    mesh: Mesh
+    graph: DeformationGraph
+    poses: tuple[GraphPose, ...]
+    take: Take
+    placement: Placement
+    rig: Rig
+    shape_fit: object | None
+    notes: tuple[str, ...]
+    seconds: dict
+
+
+def animate(mesh: Mesh, take: Take, settings: AnimateSettings = AnimateSettings(),
+            on_frame: Callable[[int], None] | None = None,
+            on_step: Callable[[str], None] | None = None) -> Animation:
+    """Drive `mesh` with every frame of `take`.
+
+    Parameters
+    ----------
+    mesh : Mesh, +Y up (any units)
+    take : Take, +Y up (a Kinect-20 person is fitted by height; any other skeleton from the two shapes)
+    settings : AnimateSettings
+    on_frame : called with each frame's index once it is solved (progress)
+    on_step : called with "graph", "placement", "attach" as each rigging step ends (progress)
+
+    Raises
+    ------
+    BadSettingsError
+        A setting that does not fit the input (a bind frame outside the take, a size fit for a person).
+    BadMotionError, AttachError, BadGraphError
+        The take cannot be placed, nothing of it lies near the mesh, or the graph cannot be built.
+    """
+    import kinetre
+    from .deform.solver import SolverSettings
+    from .motion.fit import fit_take
+
+    s = settings
+    if s.nodes < 2:
+        raise BadSettingsError(f"--nodes must be at least 2, got {s.nodes}")
+    if s.fit not in FITS:
+        raise BadSettingsError(f"fit must be one of mesh, height, length or None, got {s.fit!r}")
+    if s.solver not in SOLVERS:
+        raise BadSettingsError(f"solver must be one of pcg, local_global, exact or None, got {s.solver!r}")
+    if not -len(take) <= s.bind_frame < len(take):
+        raise BadSettingsError(f"--bind-frame {s.bind_frame} is outside the take's {len(take)} frames")
+    step = on_step or (lambda name: None)
+    seconds: dict = {}
+    clock, cpu_clock = time.perf_counter(), time.process_time()
+
+    def lap(stage):
+        nonlocal clock, cpu_clock
+        now, cpu_now = time.perf_counter(), time.process_time()
+        seconds[f"{stage}_s"] = now - clock
+        seconds[f"{stage}_cpu"] = cpu_now - cpu_clock  # CPU seconds: what the stage costs on a shared machine
+        clock, cpu_clock = now, cpu_now
+
+    graph = kinetre.build_graph(mesh, nodes=s.nodes, seed=s.seed, weights=False)
+    # the skinning weights (only a solved animation needs them) are computed on another core meanwhile
+    weighing = _weigh_in_background(graph, mesh) if s.solve else None
+    step("graph")
+    lap("graph")
+    fit_mesh = s.fit == "mesh"
+    shape = None
+    if take.model == kinetre.KINECT20:  # a person: face +Z, scale to height
+        if s.fit in ("height", "length"):
+            raise BadSettingsError("--fit height|length applies to non-human skeletons (people are fitted by "
+                                   "height)")
+        yaw = (s.yaw or 0.0) + (180.0 if s.flip else 0.0)
+        placement = fit_take(take, mesh, s.bind_frame, fit_mesh=fit_mesh, yaw=yaw)
+        notes: tuple[str, ...] = ()
+    else:  # any other skeleton: from the two shapes
+        from .motion.align import fit_shapes
+        shape = fit_shapes(take, mesh, s.bind_frame, fit=s.fit if s.fit in ("height", "length") else "auto",
+                           yaw=s.yaw or 0.0, flip=s.flip, fit_mesh=fit_mesh, nodes=graph.nodes)
+        placement, notes = shape.placement, tuple(shape.notes)
+    step("placement")
+    placed = placement.take(take)
+    solve_graph = placement.graph(graph)
+    bind = placed.frame(s.bind_frame)
+    solver = SolverSettings() if s.solver is None else SolverSettings(method=s.solver)
+    subset = list(s.subset) if isinstance(s.subset, tuple) else s.subset
+    rig = kinetre.attach(solve_graph, bind, subset=subset, settings=solver)
+    step("attach")
+    notes = notes + _attach_notes(take, rig, s.subset)
+    lap("attach")
+
+    out_take = placed.transformed(placement.output_scale)
+    poses: list[GraphPose] = []
+    mesh_out = placement.mesh(mesh) if fit_mesh else mesh
+    if s.solve:
+        for i in range(len(placed)):
+            poses.append(placement.output_pose(rig.solve(placed.frame(i))))
+            if on_frame is not None:
+                on_frame(i)
+        lap("solve")
+        wait = time.perf_counter()
+        graph, seconds["weights_cpu"] = weighing.result()
+        seconds["weights_wait_s"] = time.perf_counter() - wait
+    graph_out = placement.graph(graph) if fit_mesh else graph
+    return Animation(mesh_out, graph_out, tuple(poses), out_take, placement, rig, shape, notes, seconds)
+
+
+def _weigh_in_background(graph, mesh):
+    """A future of (`graph` with `mesh`'s skinning weights, the CPU seconds they took), computed in a thread:
+    the weights kernels release the GIL, so on a machine with a free core they cost no time beside the
+    attach and solve (about 0.2 s of a 3 s command on a 386k-vertex mesh)."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    from .graph.build import with_weights
+    from .graph.weights import skinning_weights
+
+    def weigh():
+        cpu = time.thread_time()
+        return with_weights(graph, mesh), time.thread_time() - cpu
+
+    # load the kernels here first: the thread then runs compiled code only, never numba's compiler or an
+    # import, which the main thread may be doing at the same time
+    skinning_weights(mesh.vertices[:1], mesh.normals[:1], graph.nodes, graph.normals, graph.radius)
+    pool = ThreadPoolExecutor(1, thread_name_prefix="kinetre-weights")
+    future = pool.submit(weigh)
+    pool.shutdown(wait=False)  # the thread ends with its one task
+    return future
+
+
+def _attach_notes(take, rig, subset) -> tuple[str, ...]:
+    """Words for a poor attachment: few of the (wanted) joints within reach of the mesh."""
+    if subset:
+        return ()
+    wanted = len(take.model.joints)
+    got = len(rig.attached_joints[0])
+    if got >= 0.5 * wanted:
+        return ()
+    return (f"only {got} of {wanted} joints lie within reach of the mesh: try --yaw 90, --flip, "
+            f"--fit height|length or more --nodes",)
