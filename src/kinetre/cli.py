@@ -8,6 +8,11 @@ import sys
 import time
 from pathlib import Path
 
+from .cli_common import UsageError
+from .cli_common import frame_range as _frames
+from .cli_common import load_motion as _load_motion
+from .cli_common import output_ext as _ext
+from .cli_common import quiet_mediapipe as _quiet_mediapipe
 from .errors import KinetreError
 
 EPILOG = """examples:
@@ -31,31 +36,6 @@ EPILOG = """examples:
 MESH_EXTS = (".obj", ".ply", ".stl", ".off", ".glb", ".gltf")
 VIDEO_EXTS = (".mp4", ".mov", ".avi", ".mkv", ".webm")
 ANIMATE_OUTPUTS = (".glb", ".gltf", ".bvh", ".mp4", ".webm", ".kinetre.jsonl")
-
-
-class UsageError(KinetreError):
-    """A command-line argument that does not make sense (reported like any bad input)."""
-
-
-def _ext(path: str, choices) -> str:
-    low = path.lower()
-    for ext in sorted(choices, key=len, reverse=True):
-        if low.endswith(ext):
-            return ext
-    raise UsageError(f"{path}: unsupported output type (expected {', '.join(choices)})")
-
-
-def _frames(spec: str | None) -> slice:
-    if not spec:
-        return slice(None)
-    parts = spec.split(":")
-    try:
-        if len(parts) != 2:
-            raise ValueError
-        start, stop = (int(p) if p.strip() else None for p in parts)
-    except ValueError:
-        raise UsageError(f"--frames must be START:END (e.g. 0:60), got {spec!r}") from None
-    return slice(start, stop)
 
 
 def _subset(items: list[str] | None):
@@ -88,20 +68,6 @@ class _NoBar:
 
     def __exit__(self, *exc) -> None:
         pass
-
-
-def _load_motion(path: str, scale: float | None, as_kinect: bool = True):
-    from .motion.gltf import is_gltf
-    from .motion.source import load_take
-    if is_gltf(path):
-        if scale is not None:
-            raise UsageError("--scale applies to BVH files only")
-        return load_take(path, as_kinect=as_kinect)
-    if not path.lower().endswith(".bvh") and (scale is not None or not as_kinect):
-        raise UsageError("--scale and --own-skeleton apply to BVH and glTF files only")
-    if path.lower().endswith(".bvh"):
-        return load_take(path, scale=scale, as_kinect=as_kinect)
-    return load_take(path)
 
 
 # ---- animate ---------------------------------------------------------------------------------------
@@ -246,12 +212,6 @@ def _write_skeleton(path: str, ext: str, take) -> None:
 
 
 # ---- capture / record ------------------------------------------------------------------------------
-
-def _quiet_mediapipe() -> None:
-    # MediaPipe's C++ side logs through glog/absl to stderr; keep the command's stderr for errors.
-    os.environ.setdefault("GLOG_minloglevel", "2")
-    os.environ.setdefault("TF_CPP_MIN_LOG_LEVEL", "2")
-
 
 def cmd_capture(args) -> int:
     from .motion.capture import CaptureSettings, capture_camera, capture_video

@@ -14,7 +14,7 @@ from export.gltf_player import GltfPlayer
 from export.takes import validate_gltf
 from kinetre.avatar.export import write_avatar_bvh, write_avatar_gltf
 from kinetre.avatar.retarget import retarget
-from kinetre.avatar.skin import skin_avatar
+from kinetre.avatar.skin import bind_bounds, skin_avatar
 from kinetre.cli import main
 from kinetre.motion.bvh import forward_kinematics, parse_bvh
 
@@ -38,7 +38,7 @@ def exported(tmp_path_factory, rigged, walk):
 
 
 def diagonal(avatar) -> float:
-    lo, hi = avatar.bounds()
+    lo, hi = bind_bounds(avatar)
     return float(np.linalg.norm(hi - lo))
 
 

@@ -55,7 +55,7 @@ def kinect_take(take):
 
 
 def cmd_avatar(args) -> int:
-    from ..cli import UsageError, _ext, _frames, _load_motion, _quiet_mediapipe
+    from ..cli_common import UsageError, frame_range, load_motion, output_ext, quiet_mediapipe
     from ..motion.source import resample
     from .bonemap import describe, map_bones, map_path, write_map
     from .load import load_avatar
@@ -69,7 +69,7 @@ def cmd_avatar(args) -> int:
         raise UsageError("kinetre avatar --motion needs -o OUTPUT or --vmc HOST:PORT")
     if args.vmc is not None and args.output:
         raise UsageError("kinetre avatar: --vmc streams the take instead of writing it; give -o or --vmc")
-    out_ext = _ext(args.output, OUTPUTS) if args.output else None
+    out_ext = output_ext(args.output, OUTPUTS) if args.output else None
     if args.map is not None and not os.path.exists(args.map):
         raise UsageError(f"{args.map}: no such bone map")
     avatar = load_avatar(args.avatar)
@@ -85,9 +85,9 @@ def cmd_avatar(args) -> int:
         return 0
 
     if args.motion.lower().endswith((".mp4", ".mov", ".avi", ".mkv", ".webm")):
-        _quiet_mediapipe()
-    take = kinect_take(_load_motion(args.motion, args.scale))
-    frames = _frames(args.frames)
+        quiet_mediapipe()
+    take = kinect_take(load_motion(args.motion, args.scale))
+    frames = frame_range(args.frames)
     take = take.slice(frames.start or 0, frames.stop)
     take = resample(take, args.fps if args.fps is not None else min(take.fps, 30.0))
     if args.max_frames is not None:

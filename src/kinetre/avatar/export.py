@@ -19,7 +19,7 @@ import numpy as np
 import pygltflib as gl
 
 from ..errors import ExportError
-from ..export.gltf import _append, rotation_quaternions, save_gltf, skin_weights
+from ..export.gltf import append_accessor, rotation_quaternions, save_gltf, skin_weights
 from .load import Avatar
 from .retarget import AvatarMotion, RetargetPlan
 from .skin import skin_avatar
@@ -57,14 +57,14 @@ def write_avatar_gltf(path, avatar: Avatar, motion: AvatarMotion, fps: float, na
         nd.rotation = [float(x) for x in rest_q[0, j]]
         nd.scale = [float(x) for x in rest_s[0, j]]
     times = (np.arange(len(motion)) / fps).astype(np.float32)
-    time_acc = _append(doc, blob, times, gl.SCALAR, gl.FLOAT, minmax=True)
+    time_acc = append_accessor(doc, blob, times, gl.SCALAR, gl.FLOAT, minmax=True)
     samplers, channels = [], []
     for j in range(n):
         tracks = [("rotation", anim_q[:, j], gl.VEC4)]
         if np.abs(anim_t[:, j] - rest_t[0, j]).max() > 1e-7 * size:
             tracks.append(("translation", anim_t[:, j].astype(np.float32), gl.VEC3))
         for prop, values, kind in tracks:
-            acc = _append(doc, blob, np.ascontiguousarray(values, dtype=np.float32), kind, gl.FLOAT)
+            acc = append_accessor(doc, blob, np.ascontiguousarray(values, dtype=np.float32), kind, gl.FLOAT)
             samplers.append(gl.AnimationSampler(input=time_acc, output=acc, interpolation="LINEAR"))
             channels.append(gl.AnimationChannel(sampler=len(samplers) - 1,
                                                 target=gl.AnimationChannelTarget(node=int(avatar.joints[j]), path=prop)))
@@ -278,6 +278,6 @@ def _renormalised_weights(doc, blob: bytearray, avatar: Avatar, keys: list) -> N
                                                            node_count=len(avatar.joints)))
             joints[weights == 0] = 0                    # the validator wants unused slots on joint 0
             kind = gl.UNSIGNED_BYTE if joints.dtype == np.uint8 else gl.UNSIGNED_SHORT
-            done[key] = (_append(doc, blob, joints, gl.VEC4, kind, target=gl.ARRAY_BUFFER),
-                         _append(doc, blob, weights, gl.VEC4, gl.FLOAT, target=gl.ARRAY_BUFFER))
+            done[key] = (append_accessor(doc, blob, joints, gl.VEC4, kind, target=gl.ARRAY_BUFFER),
+                         append_accessor(doc, blob, weights, gl.VEC4, gl.FLOAT, target=gl.ARRAY_BUFFER))
         prim.attributes.JOINTS_0, prim.attributes.WEIGHTS_0 = done[key]

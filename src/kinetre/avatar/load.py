@@ -114,12 +114,6 @@ class Avatar:
     def vertex_count(self) -> int:
         return sum(len(p.positions) for p in self.primitives)
 
-    def bounds(self) -> tuple[np.ndarray, np.ndarray]:
-        """(3,) min and max corners of the skinned mesh in the bind pose (world)."""
-        from .skin import skin_avatar
-        v = np.concatenate(skin_avatar(self, self.bind_world[None])[0])
-        return v.min(axis=0), v.max(axis=0)
-
 
 def trs_matrix(translation, rotation, scale) -> np.ndarray:
     """(4, 4) T · R · S from glTF's translation (3), rotation quaternion (x, y, z, w) and scale (3)."""

@@ -1,4 +1,4 @@
-"""The avatar's own linear blend skinning, as a glTF player does it (SPEC §6.1, paper Eq. 1):
+"""The avatar's own linear blend skinning, as a glTF player does it (the avateering paper's skinning step, KinÊtre Eq. 1):
 
     v' = Σ_k w_k · (World_k · IBM_k) · v,
 
@@ -49,3 +49,9 @@ def skin_avatar(avatar: Avatar, world: np.ndarray, normals: bool = False):
         out_p.append(frame_p)
         out_n.append(frame_n)
     return (out_p, out_n) if normals else out_p
+
+
+def bind_bounds(avatar: Avatar) -> tuple[np.ndarray, np.ndarray]:
+    """(3,) min and max corners of the skinned mesh in the bind pose (world)."""
+    v = np.concatenate(skin_avatar(avatar, avatar.bind_world[None])[0])
+    return v.min(axis=0), v.max(axis=0)

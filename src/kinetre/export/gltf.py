@@ -83,7 +83,7 @@ def write_gltf(path, mesh: Mesh, graph: DeformationGraph, poses: list[GraphPose]
         doc, blob = exported_document(path, mesh, name)
         if mesh.uvs is not None and mesh.colors is not None:
             # trimesh's TextureVisuals carry no colours: add COLOR_0 ourselves (normalised unsigned bytes)
-            doc.meshes[0].primitives[0].attributes.COLOR_0 = _append(
+            doc.meshes[0].primitives[0].attributes.COLOR_0 = append_accessor(
                 doc, blob, _rgba(mesh.colors), gl.VEC4, gl.UNSIGNED_BYTE, normalized=True, minmax=True,
                 target=gl.ARRAY_BUFFER)
     svd = np.linalg.svd(rotations)  # one factorisation serves the bound and either kind of joint
@@ -229,14 +229,14 @@ def geometry_document(mesh: Mesh, name: str) -> tuple[gl.GLTF2, bytearray]:
     pygltflib's re-parse of it (0.12-0.18 s at 386k vertices)."""
     doc, blob = gl.GLTF2(scene=0), bytearray()  # the default scene, as trimesh's document names it
     attributes = gl.Attributes()
-    indices = _append(doc, blob, np.asarray(mesh.faces).reshape(-1).astype(np.uint32), gl.SCALAR, gl.UNSIGNED_INT,
+    indices = append_accessor(doc, blob, np.asarray(mesh.faces).reshape(-1).astype(np.uint32), gl.SCALAR, gl.UNSIGNED_INT,
                       minmax=True, target=gl.ELEMENT_ARRAY_BUFFER)
-    attributes.POSITION = _append(doc, blob, np.asarray(mesh.vertices, dtype=np.float32), gl.VEC3, gl.FLOAT,
+    attributes.POSITION = append_accessor(doc, blob, np.asarray(mesh.vertices, dtype=np.float32), gl.VEC3, gl.FLOAT,
                                   minmax=True, target=gl.ARRAY_BUFFER)
     if mesh.colors is not None:
-        attributes.COLOR_0 = _append(doc, blob, _rgba(mesh.colors), gl.VEC4, gl.UNSIGNED_BYTE, normalized=True,
+        attributes.COLOR_0 = append_accessor(doc, blob, _rgba(mesh.colors), gl.VEC4, gl.UNSIGNED_BYTE, normalized=True,
                                      minmax=True, target=gl.ARRAY_BUFFER)
-    attributes.NORMAL = _append(doc, blob, np.asarray(mesh.normals, dtype=np.float32), gl.VEC3, gl.FLOAT,
+    attributes.NORMAL = append_accessor(doc, blob, np.asarray(mesh.normals, dtype=np.float32), gl.VEC3, gl.FLOAT,
                                 minmax=True, target=gl.ARRAY_BUFFER)
     doc.meshes = [gl.Mesh(name=name, primitives=[gl.Primitive(attributes=attributes, indices=indices,
                                                                mode=gl.TRIANGLES)])]
@@ -293,8 +293,8 @@ def exported_document(path, mesh: Mesh, name: str) -> tuple[gl.GLTF2, bytearray]
     return doc, bytearray(doc.binary_blob() or b"")
 
 
-def _append(doc: gl.GLTF2, blob: bytearray, array: np.ndarray, gltf_type: str, component: int,
-            normalized: bool = False, minmax: bool = False, target: int | None = None) -> int:
+def append_accessor(doc: gl.GLTF2, blob: bytearray, array: np.ndarray, gltf_type: str, component: int,
+                    normalized: bool = False, minmax: bool = False, target: int | None = None) -> int:
     """Append `array` to the buffer as a new bufferView + accessor; return the accessor index."""
     blob.extend(b"\0" * (-len(blob) % _ALIGN))
     data = np.ascontiguousarray(array)
@@ -461,10 +461,10 @@ def _add_skin_and_animation(doc, blob, graph, rotations, translations, fps, name
     f, n = translations.shape[:2]
     prim = doc.meshes[0].primitives[0]
     joints, weights = skin_weights(graph)
-    prim.attributes.JOINTS_0 = _append(doc, blob, joints, gl.VEC4,
+    prim.attributes.JOINTS_0 = append_accessor(doc, blob, joints, gl.VEC4,
                                        gl.UNSIGNED_BYTE if joints.dtype == np.uint8 else gl.UNSIGNED_SHORT,
                                        target=gl.ARRAY_BUFFER)
-    prim.attributes.WEIGHTS_0 = _append(doc, blob, weights, gl.VEC4, gl.FLOAT, target=gl.ARRAY_BUFFER)
+    prim.attributes.WEIGHTS_0 = append_accessor(doc, blob, weights, gl.VEC4, gl.FLOAT, target=gl.ARRAY_BUFFER)
 
     g = np.asarray(graph.nodes, dtype=np.float64)
     # node 0: the skinned mesh (a root without transform, as glTF requires for skinned meshes)
@@ -485,12 +485,12 @@ def _add_skin_and_animation(doc, blob, graph, rotations, translations, fps, name
     inverse_bind = np.tile(np.eye(4, dtype=np.float32), (n, 1, 1))
     inverse_bind[:, :3, 3] = -g
     # glTF matrices are column-major: store the transpose of each row-major matrix
-    ibm = _append(doc, blob, inverse_bind.transpose(0, 2, 1).reshape(n, 16), gl.MAT4, gl.FLOAT)
+    ibm = append_accessor(doc, blob, inverse_bind.transpose(0, 2, 1).reshape(n, 16), gl.MAT4, gl.FLOAT)
     doc.skins = [gl.Skin(name=f"{name}_skin", joints=joint_ids, skeleton=1, inverseBindMatrices=ibm)]
     doc.scenes = [gl.Scene(name=name, nodes=[0, 1])]
 
     times = (np.arange(f, dtype=np.float64) / fps).astype(np.float32)
-    time_acc = _append(doc, blob, times, gl.SCALAR, gl.FLOAT, minmax=True)
+    time_acc = append_accessor(doc, blob, times, gl.SCALAR, gl.FLOAT, minmax=True)
     position = (g[None] + translations).astype(np.float32)              # (F, N, 3)
     tracks = []                                                          # (node, path, (F, k) values)
     if stretch:
@@ -505,7 +505,7 @@ def _add_skin_and_animation(doc, blob, graph, rotations, translations, fps, name
             tracks += [(top[j], "translation", position[:, j]), (top[j], "rotation", quats[:, j])]
     samplers, channels = [], []
     for node, prop, values in tracks:
-        acc = _append(doc, blob, values, gl.VEC4 if prop == "rotation" else gl.VEC3, gl.FLOAT)
+        acc = append_accessor(doc, blob, values, gl.VEC4 if prop == "rotation" else gl.VEC3, gl.FLOAT)
         samplers.append(gl.AnimationSampler(input=time_acc, output=acc, interpolation="LINEAR"))
         channels.append(gl.AnimationChannel(sampler=len(samplers) - 1,
                                             target=gl.AnimationChannelTarget(node=node, path=prop)))

@@ -18,7 +18,7 @@ import numpy as np
 import pygltflib as gl
 
 from ..errors import ExportError
-from ..export.gltf import _append
+from ..export.gltf import append_accessor
 from .caricature import NAMES, morph_targets
 from .reconstruct import CM, FaceFrame
 from .template import load_template
@@ -42,14 +42,14 @@ def write_face_gltf(path, frames: list[FaceFrame], image: bytes, mime: str, fps:
                    extensionsUsed=["KHR_materials_unlit"])
     blob = bytearray()
     vertex = gl.ARRAY_BUFFER
-    attrs = gl.Attributes(POSITION=_append(doc, blob, base, gl.VEC3, gl.FLOAT, minmax=True, target=vertex),
-                          TEXCOORD_0=_append(doc, blob, frames[0].uvs.astype(np.float32), gl.VEC2, gl.FLOAT,
+    attrs = gl.Attributes(POSITION=append_accessor(doc, blob, base, gl.VEC3, gl.FLOAT, minmax=True, target=vertex),
+                          TEXCOORD_0=append_accessor(doc, blob, frames[0].uvs.astype(np.float32), gl.VEC2, gl.FLOAT,
                                              target=vertex))
-    indices = _append(doc, blob, template.triangles.reshape(-1).astype(np.uint16), gl.SCALAR,
+    indices = append_accessor(doc, blob, template.triangles.reshape(-1).astype(np.uint16), gl.SCALAR,
                       gl.UNSIGNED_SHORT, target=gl.ELEMENT_ARRAY_BUFFER)
     rotation = frames[0].anchor.rotation @ frames[0].turn
     deltas = [CM * d @ rotation.T for d in morph_targets()] + [f.vertices - frames[0].vertices for f in frames[1:]]
-    targets = [{"POSITION": _append(doc, blob, d.astype(np.float32), gl.VEC3, gl.FLOAT, minmax=True,
+    targets = [{"POSITION": append_accessor(doc, blob, d.astype(np.float32), gl.VEC3, gl.FLOAT, minmax=True,
                                     target=vertex)} for d in deltas]
     names = list(NAMES) + [f"frame {k}" for k in range(1, len(frames))]
     doc.meshes = [gl.Mesh(name=name, primitives=[gl.Primitive(attributes=attrs, indices=indices, material=0,
@@ -72,8 +72,8 @@ def write_face_gltf(path, frames: list[FaceFrame], image: bytes, mime: str, fps:
         keys = np.zeros((n, len(NAMES) + n - 1), dtype=np.float32)
         keys[:, : len(NAMES)] = caricature
         keys[np.arange(1, n), len(NAMES) + np.arange(n - 1)] = 1.0
-        t_acc = _append(doc, blob, times, gl.SCALAR, gl.FLOAT, minmax=True)
-        w_acc = _append(doc, blob, keys.reshape(-1), gl.SCALAR, gl.FLOAT)
+        t_acc = append_accessor(doc, blob, times, gl.SCALAR, gl.FLOAT, minmax=True)
+        w_acc = append_accessor(doc, blob, keys.reshape(-1), gl.SCALAR, gl.FLOAT)
         doc.animations = [gl.Animation(name=name, samplers=[gl.AnimationSampler(input=t_acc, output=w_acc,
                                                                                  interpolation="LINEAR")],
                                        channels=[gl.AnimationChannel(sampler=0, target=gl.AnimationChannelTarget(

@@ -36,7 +36,8 @@ class FeatureMotion:
     target_points: np.ndarray
 
 
-def _cv2():
+def opencv():
+    """The cv2 module, or a clear error when the scan extra is not installed."""
     try:
         import cv2
     except ImportError:
@@ -65,7 +66,7 @@ def frame_features(color: np.ndarray, depth: np.ndarray, camera: Intrinsics,
 
 
 def _describe(color: np.ndarray, depth: np.ndarray, camera: Intrinsics) -> Features:
-    cv2 = _cv2()
+    cv2 = opencv()
     gray = cv2.cvtColor(np.ascontiguousarray(color), cv2.COLOR_RGB2GRAY)
     keypoints, descriptors = cv2.ORB_create(nfeatures=ORB_FEATURES).detectAndCompute(gray, None)
     if descriptors is None or len(keypoints) == 0:
@@ -118,7 +119,7 @@ def match(a: Features, b: Features, inlier_distance: float = 0.02, hypotheses: i
     """Rigid motion taking the points of `a` onto those of `b` by RANSAC over mutual descriptor matches."""
     if len(a.descriptors) < min_inliers or len(b.descriptors) < min_inliers:
         return None
-    cv2 = _cv2()
+    cv2 = opencv()
     pairs = cv2.BFMatcher(cv2.NORM_HAMMING, crossCheck=True).match(a.descriptors, b.descriptors)
     if len(pairs) < min_inliers:
         return None

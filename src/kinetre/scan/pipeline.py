@@ -212,8 +212,8 @@ def scan(frames: str | Path, out_path: str | Path, *, segment: str | None = None
     """
     from threadpoolctl import threadpool_limits
 
-    from .features import _cv2
-    cv2 = _cv2()
+    from .features import opencv
+    cv2 = opencv()
     threads = max(1, int(threads))
     opencv_threads = cv2.getNumThreads()
     cv2.setNumThreads(threads)

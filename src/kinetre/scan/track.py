@@ -197,8 +197,8 @@ def _pyramid(o3d, color: np.ndarray, depth: np.ndarray, camera: Intrinsics, widt
              depth_outlier: float) -> _Pyramid:
     """The frame halved until at most `width` pixels wide, as Open3D's own pyramid would (colour by a Gaussian
     pyramid, depth by `_pyrdown_depth` with its threshold, twice the outlier distance)."""
-    from .features import _cv2
-    cv2 = _cv2()
+    from .features import opencv
+    cv2 = opencv()
     halvings = _halvings(camera.width, width)
     small_color = color.astype(np.float32) / np.float32(255.0) if color.dtype == np.uint8 else color
     small_depth = np.ascontiguousarray(depth, np.float32)
