@@ -14,20 +14,7 @@ ALLOWED_CYCLES: dict[frozenset[str], str] = {
     frozenset({"kinetre.studio.app", "kinetre.studio.remote"}):
         "GatewayStudio subclasses the web Studio; to become one scene-host interface shared with the mirror",
 }
-ALLOWED_PRIVATE: dict[tuple[str, str, str], str] = {
-    ("kinetre.avatar.bonemap", "kinetre.motion.bvh", "_candidates"): "bone-name matching is being rewritten",
-    ("kinetre.avatar.bonemap", "kinetre.motion.bvh", "_key"): "bone-name matching is being rewritten",
-    **{("kinetre.deform." + importer, "kinetre.deform." + module, name): "the solver is being restructured"
-       for importer, module, name in (
-           ("coordinate_split", "normal_equations", "_positions"),
-           ("coordinate_split", "normal_equations", "_scatter"),
-           ("gradient", "normal_equations", "_ROT_P"),
-           ("gradient", "normal_equations", "_ROT_Q"),
-           ("local_global", "krylov", "_coordinate_solve"),
-           ("local_global", "krylov", "_node_solve"),
-           ("local_global", "normal_equations", "_ROT_P"),
-           ("local_global", "normal_equations", "_ROT_Q"))},
-}
+ALLOWED_PRIVATE: dict[tuple[str, str, str], str] = {}
 
 
 def module_name(path: Path) -> str:
