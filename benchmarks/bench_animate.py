@@ -74,7 +74,8 @@ def _whole(argv: list[str], env: dict, clip_s: float) -> dict:
 
 def stages(mesh: Path, out: Path) -> dict:
     """One run inside this process: `cmd_animate`'s per-stage seconds and CPU seconds."""
-    from kinetre.cli import build_parser, cmd_animate
+    from kinetre.cli import build_parser
+    from kinetre.cli.animate import cmd_animate
 
     args = build_parser().parse_args(_animate_argv(mesh, WALK, out, FRAMES))
     stats: dict = {}

@@ -16,7 +16,8 @@ import time
 from pathlib import Path
 
 import kinetre
-from kinetre.cli import build_parser, cmd_animate
+from kinetre.cli import build_parser
+from kinetre.cli.animate import cmd_animate
 from kinetre.motion.align import fit_shapes
 from kinetre.motion.gltf import animations, load_gltf
 

@@ -39,7 +39,7 @@ def test_kernel_recompiles_when_a_module_it_calls_changes(tmp_path):
     helper.write_text(HELPER.format(value=10))  # the kernel's own file is unchanged
     assert run() == (22.0, 0, 1)  # numba alone would load the stale machine code and print 4.0
     assert run() == (22.0, 1, 0)
-    (package / "cli.py").write_text((package / "cli.py").read_text() + "\n# an edit outside the kernels\n")
+    (package / "animation.py").write_text((package / "animation.py").read_text() + "\n# an edit outside the kernels\n")
     assert run() == (22.0, 1, 0)
 
 

@@ -21,6 +21,7 @@ from .mesh.mesh import Mesh
 from .motion.fit import Placement
 from .motion.take import Take
 from .skeleton.rig import Rig
+from .stopwatch import Stopwatch
 
 FITS = (None, "mesh", "height", "length")
 SOLVERS = (None, "pcg", "local_global", "exact")
@@ -116,15 +117,8 @@ def animate(mesh: Mesh, take: Take, settings: AnimateSettings = AnimateSettings(
     if not -len(take) <= s.bind_frame < len(take):
         raise BadSettingsError(f"--bind-frame {s.bind_frame} is outside the take's {len(take)} frames")
     step = on_step or (lambda name: None)
-    seconds: dict = {}
-    clock, cpu_clock = time.perf_counter(), time.process_time()
-
-    def lap(stage):
-        nonlocal clock, cpu_clock
-        now, cpu_now = time.perf_counter(), time.process_time()
-        seconds[f"{stage}_s"] = now - clock
-        seconds[f"{stage}_cpu"] = cpu_now - cpu_clock  # CPU seconds: what the stage costs on a shared machine
-        clock, cpu_clock = now, cpu_now
+    watch = Stopwatch()
+    seconds, lap = watch.seconds, watch.lap
 
     graph = kinetre.build_graph(mesh, nodes=s.nodes, seed=s.seed, weights=False)
     # the skinning weights (only a solved animation needs them) are computed on another core meanwhile

@@ -1,16 +1,16 @@
-"""`kinetre scan` subcommand: registered by add_scan_parser, summary on stdout, errors as one line + exit 2."""
+"""`kinetre scan` subcommand: registered by kinetre.cli.scan.register, summary on stdout, errors as one line + exit 2."""
 from __future__ import annotations
 
 import argparse
 
 import trimesh
 
-from kinetre.scan.cli import add_scan_parser
+from kinetre.cli.scan import register
 
 
 def _parser():
     parser = argparse.ArgumentParser(prog="kinetre")
-    add_scan_parser(parser.add_subparsers(dest="command"))
+    register(parser.add_subparsers(dest="command"))
     return parser
 
 

@@ -12,7 +12,7 @@ import os
 
 import numpy as np
 
-from ..errors import BadAvatarError
+from ..errors import BadAvatarError, BadMotionError
 from ..skeleton.humanoid_map import REQUIRED, UP, HumanoidMap, map_humanoid, parse_table, table_of, upright_problems
 from ..skeleton.models import KINECT20, OPENNI17
 from .load import Avatar
@@ -144,3 +144,15 @@ def kinect_from_openni(positions: np.ndarray, tracked: np.ndarray) -> tuple[np.n
         out[..., KINECT20.index(kj), :] = positions[..., idx, :].mean(axis=-2)
         seen[..., KINECT20.index(kj)] = tracked[..., idx].all(axis=-1)
     return out, seen & np.isfinite(out).all(axis=-1)
+
+
+def kinect_take(take):
+    """A take on Kinect-20 (OpenNI-17 takes converted); other skeletons cannot drive a humanoid."""
+    from ..motion.source import Take
+    if take.model.name == "kinect20":
+        return take
+    if take.model.name == "openni17":
+        pos, tracked = kinect_from_openni(take.positions, take.tracked)
+        return Take(KINECT20, pos, tracked, take.fps, take.source)
+    raise BadMotionError(f"{take.source}: its skeleton ({take.model.name}) has no Kinect-20 map, so it cannot "
+                         "drive a humanoid avatar (name the joints like Mixamo/CMU/Kinect)")

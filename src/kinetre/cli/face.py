@@ -4,7 +4,7 @@ from __future__ import annotations
 import os
 
 from ..errors import BadFaceError, KinetreError
-from .caricature import NAMES, PRESETS, weights_from
+from ..face.caricature import NAMES, PRESETS, weights_from
 
 
 def _caricature(args):
@@ -22,8 +22,8 @@ def _caricature(args):
 
 
 def cmd_face(args) -> int:
-    from .export import write_face_gltf
-    from .pipeline import face_take
+    from ..face.export import write_face_gltf
+    from ..face.pipeline import face_take
 
     if not args.output.lower().endswith((".glb", ".gltf")):
         raise KinetreError(f"{args.output}: the face is written as glTF: use .glb or .gltf")
@@ -35,7 +35,8 @@ def cmd_face(args) -> int:
     return 0
 
 
-def add_face_parser(sub) -> None:
+def register(sub) -> None:
+    """Add `kinetre face` to the `kinetre` parser's subcommands."""
     p = sub.add_parser("face", help="rebuild a textured 3D face from a photo or a video (animated)",
                        description=__doc__)
     p.add_argument("input", help="image (.jpg, .png, ...) or video")

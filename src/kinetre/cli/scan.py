@@ -1,6 +1,6 @@
 """`kinetre scan frames/ -o out.ply [--segment plane|change --before DIR] [--voxel 0.006] ...`
 
-`add_scan_parser(subparsers)` registers the subcommand on the main `kinetre` parser; its handler takes the
+`register(subparsers)` adds the subcommand to the main `kinetre` parser; its handler takes the
 parsed namespace and returns the exit code (0 done, 2 bad input with one line on stderr).
 """
 from __future__ import annotations
@@ -9,12 +9,12 @@ import argparse
 import sys
 
 from ..errors import KinetreError
-from .frames import CAMERAS
+from ..scan.frames import CAMERAS
 
 
-def add_scan_parser(subparsers) -> argparse.ArgumentParser:
-    """Add `scan` to an argparse subparsers object; returns the new parser."""
-    parser = subparsers.add_parser(
+def register(sub) -> None:
+    """Add `kinetre scan` to the `kinetre` parser's subcommands."""
+    parser = sub.add_parser(
         "scan", help="reconstruct a mesh from RGB-D frames (TUM or Redwood folder)",
         description="Track RGB-D frames by frame-to-model ICP, fuse them into a TSDF, cut out the object and "
                     "write a clean mesh (metres, +Y up) ready for `kinetre` rigging.")
@@ -34,12 +34,11 @@ def add_scan_parser(subparsers) -> argparse.ArgumentParser:
     parser.add_argument("--threads", type=int, default=1, help="CPU threads for Open3D (default 1)")
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
     parser.set_defaults(func=run_scan)
-    return parser
 
 
 def run_scan(args: argparse.Namespace) -> int:
     """Handler of `kinetre scan`: prints the report and the summary line; returns the exit code."""
-    from .pipeline import scan
+    from ..scan.pipeline import scan
     try:
         result = scan(args.frames, args.output, segment=args.segment, before=args.before, voxel=args.voxel,
                       intrinsics=args.intrinsics, camera=args.camera, depth_scale=args.depth_scale,

@@ -7,17 +7,17 @@ automatic map as JSON next to the avatar for hand correction.
 """
 from __future__ import annotations
 
-import argparse
 import os
 import time
 
-from ..errors import BadMotionError
+from .common import VIDEO_EXTS, UsageError, frame_range, load_motion, output_ext, quiet_mediapipe
 
 OUTPUTS = (".glb", ".gltf", ".bvh", ".mp4", ".webm")
 
 
-def add_avatar_parser(subparsers) -> argparse.ArgumentParser:
-    p = subparsers.add_parser(
+def register(sub) -> None:
+    """Add `kinetre avatar` to the `kinetre` parser's subcommands."""
+    p = sub.add_parser(
         "avatar", help="drive a rigged humanoid avatar (glTF/GLB/VRM) by its own bones with a motion",
         description="Retarget a motion onto a rigged humanoid avatar (avateering, Algorithm 1) and write it "
                     "animated by its own skeleton.")
@@ -37,29 +37,13 @@ def add_avatar_parser(subparsers) -> argparse.ArgumentParser:
     p.add_argument("--max-frames", type=int, default=None, help="stop after this many output frames")
     p.add_argument("-q", "--quiet", action="store_true", help="no summary")
     p.set_defaults(func=cmd_avatar)
-    return p
-
-
-def kinect_take(take):
-    """A take on Kinect-20 (OpenNI-17 takes converted); other skeletons cannot drive a humanoid."""
-    from ..motion.source import Take
-    from ..skeleton.models import KINECT20
-    from .bonemap import kinect_from_openni
-    if take.model.name == "kinect20":
-        return take
-    if take.model.name == "openni17":
-        pos, tracked = kinect_from_openni(take.positions, take.tracked)
-        return Take(KINECT20, pos, tracked, take.fps, take.source)
-    raise BadMotionError(f"{take.source}: its skeleton ({take.model.name}) has no Kinect-20 map, so it cannot "
-                         "drive a humanoid avatar (name the joints like Mixamo/CMU/Kinect)")
 
 
 def cmd_avatar(args) -> int:
-    from ..cli_common import UsageError, frame_range, load_motion, output_ext, quiet_mediapipe
     from ..motion.source import resample
-    from .bonemap import describe, map_bones, map_path, write_map
-    from .load import load_avatar
-    from .retarget import plan_retarget, retarget
+    from ..avatar.bonemap import describe, kinect_take, map_bones, map_path, write_map
+    from ..avatar.load import load_avatar
+    from ..avatar.retarget import plan_retarget, retarget
 
     say = (lambda *a: None) if args.quiet else print
     t0 = time.perf_counter()
@@ -84,7 +68,7 @@ def cmd_avatar(args) -> int:
     if args.motion is None:
         return 0
 
-    if args.motion.lower().endswith((".mp4", ".mov", ".avi", ".mkv", ".webm")):
+    if args.motion.lower().endswith(VIDEO_EXTS):
         quiet_mediapipe()
     take = kinect_take(load_motion(args.motion, args.scale))
     frames = frame_range(args.frames)
@@ -107,13 +91,13 @@ def cmd_avatar(args) -> int:
         say(f"sent {sender.sent} VMC frames from {args.motion} ({time.perf_counter() - t0:.1f} s)")
         return 0
     if out_ext in (".glb", ".gltf"):
-        from .export import write_avatar_gltf
+        from ..avatar.export import write_avatar_gltf
         write_avatar_gltf(args.output, avatar, motion, take.fps)
     elif out_ext == ".bvh":
-        from .export import write_avatar_bvh
+        from ..avatar.export import write_avatar_bvh
         write_avatar_bvh(args.output, avatar, plan, motion, take.fps)
     else:
-        from .export import write_avatar_video
+        from ..avatar.export import write_avatar_video
         write_avatar_video(args.output, avatar, motion, take.fps)
     say(f"wrote {args.output} ({len(take)} frames at {take.fps:g} fps from {args.motion}, "
         f"{time.perf_counter() - t0:.1f} s)")

@@ -1,0 +1,219 @@
+"""`kinetre animate MESH --motion MOTION -o OUT`: the library's `kinetre.animate` with the file reading and
+writing, progress bars and summary around it."""
+from __future__ import annotations
+
+import argparse
+import gc
+import sys
+import time
+
+from ..stopwatch import Stopwatch
+from .common import EPILOG, VIDEO_EXTS, UsageError, frame_range, load_motion, output_ext, quiet_mediapipe
+
+ANIMATE_OUTPUTS = (".glb", ".gltf", ".bvh", ".mp4", ".webm", ".kinetre.jsonl")
+
+
+def register(sub) -> None:
+    """Add `kinetre animate` to the `kinetre` parser's subcommands."""
+    p = sub.add_parser("animate", help="drive a mesh with a motion file and write glTF, BVH, video or a take",
+                       epilog=EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("mesh", help="mesh file (.obj .ply .stl .off .glb .gltf, optionally .gz), or RGB-D frames "
+                                "(a folder or .zip) to scan first")
+    p.add_argument("--motion", required=True, action="append",
+                   help="motion: .bvh, .kinetre.jsonl, a video, or a glTF animation (Fox.glb#Walk, Fox.glb#1); "
+                        "repeat it with --map to join several sources")
+    p.add_argument("--map", default=None, metavar="JSON",
+                   help="joint map: rename, drop and pair the joints of the --motion sources (docs/joint-maps.md)")
+    p.add_argument("--segment", choices=("plane", "change", "none"), default="plane",
+                   help="RGB-D input: how the scan cuts out the object (default plane)")
+    p.add_argument("--before", default=None, metavar="DIR",
+                   help="RGB-D input with --segment change: frames of the same place without the object")
+    p.add_argument("-o", "--output", required=True, help=f"output: {' '.join(ANIMATE_OUTPUTS)}")
+    p.add_argument("--nodes", type=int, default=128, help="graph nodes (default 128)")
+    p.add_argument("--seed", type=int, default=0, help="graph sampling seed (default 0)")
+    p.add_argument("--subset", action="append", metavar="JOINTS",
+                   help='joints that drive, e.g. "right arm" or "HipCenter,right arm" (repeatable)')
+    p.add_argument("--bind-frame", type=int, default=0, help="frame used as the bind pose (default 0)")
+    p.add_argument("--solver", choices=("pcg", "exact"), default=None,
+                   help="per-frame solver (default: the library's, pcg): pcg or exact (the reference)")
+    p.add_argument("--fit", nargs="?", const="mesh", default=None, choices=("mesh", "height", "length"),
+                   help="--fit alone: resize the mesh to the skeleton instead of the motion to the mesh; "
+                        "--fit height|length: size a non-human source to the mesh by that extent")
+    p.add_argument("--yaw", type=float, default=None,
+                   help="degrees about +Y the skeleton is turned (people: from the mesh front +Z; other "
+                        "skeletons: added to the facing found from the shapes)")
+    p.add_argument("--flip", action="store_true", help="turn the skeleton round (the fit took front for back)")
+    p.add_argument("--scale", type=float, default=None, help="BVH: metres per file unit (default: guessed)")
+    p.add_argument("--own-skeleton", action="store_true",
+                   help="BVH/glTF: drive the mesh by the file's own bones, not the Kinect-20 map (unmapped files "
+                        "always do)")
+    p.add_argument("--fps", type=float, default=None, help="output frame rate (default: the take's, at most 30)")
+    p.add_argument("--frames", default=None, metavar="START:END", help="use only these frames of the take")
+    p.add_argument("--max-frames", type=int, default=None, help="stop after this many output frames")
+    p.add_argument("--no-skeleton", dest="skeleton", action="store_false", help="video: do not draw the skeleton")
+    p.add_argument("-q", "--quiet", action="store_true", help="no progress or summary")
+    p.set_defaults(func=cmd_animate)
+
+
+def cmd_animate(args, stats: dict | None = None) -> int:
+    """`kinetre animate`; `stats` (if given) receives the sizes and seconds per stage (for benchmarks)."""
+    # What each stage builds (numba's loaded kernels and their typing tables, the mesh, the graph) lives to
+    # the end, and the command makes almost no reference cycles (the same ~2,200 objects for 30 or 300
+    # frames): the cyclic collector's passes would only re-walk live objects, 0.25 s of a 3 s run.
+    # Reference counting still frees everything else as it goes.
+    enabled = gc.isenabled()
+    gc.disable()
+    try:
+        return _animate(args, stats)
+    finally:
+        if enabled:
+            gc.enable()
+
+
+def _animate(args, stats: dict | None) -> int:
+    import numpy as np
+
+    import kinetre
+    from ..animation import AnimateSettings, animate
+    from ..motion.source import resample
+
+    out_ext = output_ext(args.output, ANIMATE_OUTPUTS)
+    frames = frame_range(args.frames)
+    if args.nodes < 2:
+        raise UsageError(f"--nodes must be at least 2, got {args.nodes}")
+    watch = Stopwatch(stats)
+    stats, lap = watch.seconds, watch.lap
+    t0 = time.perf_counter()
+
+    say = (lambda *a: None) if args.quiet else print
+    take, motion_label = _load_motions(args)  # small: fail fast
+    scan_notes: tuple[str, ...] = ()
+    from ..scan.subject import is_frames
+    if is_frames(args.mesh):  # RGB-D frames: scan (plane segmentation by default), then rig and animate
+        from ..scan.subject import scan_subject
+        mesh, scanned, scan_notes = scan_subject(args.mesh, None if args.segment == "none" else args.segment,
+                                                 args.before, progress=not args.quiet and sys.stderr.isatty())
+        say(f"scanned {args.mesh}: {scanned.frames_used} frames used, {scanned.frames_rejected} rejected, "
+            f"{scanned.seconds:.1f} s")
+        for note in scan_notes:
+            print(f"kinetre: note: {note}", file=sys.stderr)
+    else:
+        if args.before is not None or args.segment != "plane":
+            raise UsageError("--segment and --before apply when the input is RGB-D frames (a folder or .zip)")
+        mesh = kinetre.load_mesh(args.mesh)
+    take = take.slice(frames.start or 0, frames.stop)
+    fps = args.fps if args.fps is not None else min(take.fps, 30.0)
+    take = resample(take, fps)
+    if args.max_frames is not None:
+        take = take.slice(0, max(1, args.max_frames))
+    if not -len(take) <= args.bind_frame < len(take):
+        raise UsageError(f"--bind-frame {args.bind_frame} is outside the take's {len(take)} frames")
+    lap("load")
+    say(f"mesh {args.mesh}: {len(mesh.vertices)} vertices, {len(mesh.faces)} faces")
+    say(f"motion {motion_label}: {take.model.name}, {len(take.model.joints)} joints, {len(take)} frames "
+        f"at {take.fps:g} fps")
+
+    settings = AnimateSettings(nodes=args.nodes, seed=args.seed, subset=_subset(args.subset),
+                               bind_frame=args.bind_frame, solver=args.solver, fit=args.fit, yaw=args.yaw,
+                               flip=args.flip, solve=out_ext not in (".bvh", ".kinetre.jsonl"))
+    with _bar(3, "rigging", args.quiet) as rigging, _bar(len(take), "solving", args.quiet) as solving:
+        rigging.unit = "step"
+        result = animate(mesh, take, settings, on_frame=lambda i: solving.update(1),
+                         on_step=lambda name: rigging.update(1))
+    stats.update(result.seconds)
+    watch.restart()
+    placement, rig = result.placement, result.rig
+    shape = result.shape_fit
+    if shape is not None:
+        say(f"fitted from the shapes: front by {shape.front}, turned {shape.turn:.0f} deg, size ratios "
+            f"height {shape.ratios[0]:.3g} length {shape.ratios[1]:.3g}, {100 * shape.inside:.0f} % of the "
+            f"bones inside the mesh")
+    att = rig.attachments[0]
+    joints = [take.model.joints[j] for j in rig.attached_joints[0]]
+    bind_height = placement.take(take).frame(args.bind_frame).height
+    say(f"attached {len(joints)} joint(s) ({', '.join(joints) or 'none'}), {int((att.bone >= 0).sum())} bone "
+        f"samples, {len(rig.nodes_used)} of {rig.graph.node_count} nodes (mesh scaled by "
+        f"{placement.mesh_scale:.4g} to the {bind_height:.2f} m skeleton)")
+    for note in result.notes:
+        print(f"kinetre: poor match: {note}", file=sys.stderr)
+
+    out_take = result.take
+    if out_ext in (".bvh", ".kinetre.jsonl"):
+        _write_skeleton(args.output, out_ext, out_take)
+    else:
+        poses = list(result.poses)
+        if out_ext in (".glb", ".gltf"):
+            from ..export.gltf import write_gltf
+            write_gltf(args.output, result.mesh, result.graph, poses, take.fps)
+        else:
+            from ..export.video import write_video
+            skeletons = [[out_take.frame(i)] for i in range(len(out_take))] if args.skeleton else None
+            with _bar(len(poses), "rendering", args.quiet) as bar:
+                write_video(args.output, result.mesh, result.graph, poses, take.fps, skeletons=skeletons,
+                            on_frame=lambda i: bar.update(1))
+        energy = np.array([p.energy for p in poses], dtype=float)
+        solved = energy[np.isfinite(energy)]  # held frames (nothing tracked) have no energy
+        say(f"solved {len(poses)} frames, median energy {np.median(solved) if solved.size else float('nan'):.3g}")
+    lap("write")
+    stats.update(vertices=len(mesh.vertices), nodes=rig.graph.node_count, frames=len(take),
+                 total_s=time.perf_counter() - t0)
+    stages = ", ".join(f"{k[:-2]} {v:.1f}" for k, v in stats.items() if k.endswith("_s") and k != "total_s")
+    say(f"wrote {args.output} ({len(take)} frames at {take.fps:g} fps; {stats['total_s']:.1f} s: {stages})")
+    return 0
+
+
+def _load_motions(args):
+    """The take `kinetre animate` drives with, and a label: one --motion, or several joined by --map."""
+    motions = args.motion if isinstance(args.motion, list) else [args.motion]
+    if any(m.lower().endswith(VIDEO_EXTS) for m in motions):
+        quiet_mediapipe()
+    if len(motions) > 1 and args.map is None:
+        raise UsageError(f"{len(motions)} --motion given: a --map JSON says how they share the mesh "
+                         f"(see docs/joint-maps.md)")
+    if args.map is None:
+        return load_motion(motions[0], args.scale, as_kinect=not args.own_skeleton), motions[0]
+    from ..motion.jointmap import join_takes, read_joint_map
+    jmap = read_joint_map(args.map)
+    takes = [load_motion(m, args.scale, as_kinect=not args.own_skeleton) for m in motions]
+    return join_takes(takes, jmap), f"{' + '.join(motions)} via {args.map}"
+
+
+def _write_skeleton(path: str, ext: str, take) -> None:
+    if ext == ".bvh":
+        from ..export.bvh import write_bvh
+        write_bvh(path, take.frames(), take.fps)
+    else:
+        from ..motion.stream import write_stream
+        write_stream(path, take)
+
+
+def _subset(items: list[str] | None):
+    if not items:
+        return None
+    names = [n.strip() for item in items for n in item.split(",") if n.strip()]
+    return names[0] if len(names) == 1 else names
+
+
+def _bar(total: int, desc: str, quiet: bool):
+    # bars only on a terminal, so piped or captured stderr holds just the error line
+    if quiet or not sys.stderr.isatty():
+        return _NoBar()
+    from tqdm import tqdm
+    return tqdm(total=total, desc=desc, unit="frame", file=sys.stderr, leave=False)
+
+
+class _NoBar:
+    """What a disabled tqdm bar does (nothing), without importing tqdm and multiprocessing (~20 ms)."""
+    unit = "frame"
+
+    def update(self, n: int = 1) -> None:
+        pass
+
+    def close(self) -> None:
+        pass
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc) -> None:
+        pass

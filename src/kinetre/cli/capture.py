@@ -1,0 +1,63 @@
+"""`kinetre capture --video CLIP | --camera N -o take.kinetre.jsonl`: a person tracked into a take."""
+from __future__ import annotations
+
+import argparse
+import sys
+
+from .common import EPILOG, UsageError, output_ext, quiet_mediapipe
+
+
+def register(sub) -> None:
+    """Add `kinetre capture` to the `kinetre` parser's subcommands."""
+    p = sub.add_parser("capture", help="track a person in a video or webcam into a .kinetre.jsonl take",
+                       epilog=EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)
+    src = p.add_mutually_exclusive_group(required=True)
+    src.add_argument("--video", help="video file")
+    src.add_argument("--camera", type=int, help="camera index (0 = the first webcam)")
+    p.add_argument("-o", "--output", required=True, help="output .kinetre.jsonl")
+    p.add_argument("--seconds", type=float, default=None, help="camera: stop after this long (default: Ctrl+C)")
+    p.add_argument("--max-frames", type=int, default=None, help="stop after this many frames")
+    p.add_argument("--camera-fps", type=float, default=30.0, help="camera: nominal frame rate written (default 30)")
+    p.add_argument("--fov", type=float, default=60.0, help="camera horizontal field of view, degrees (default 60)")
+    p.add_argument("--no-smooth", action="store_true", help="no One-Euro filtering")
+    p.add_argument("-q", "--quiet", action="store_true")
+    p.set_defaults(func=cmd_capture)
+
+
+def cmd_capture(args) -> int:
+    from ..motion.capture import CaptureSettings, capture_camera, capture_video
+    from ..motion.stream import TakeWriter
+    from ..skeleton.models import KINECT20
+
+    output_ext(args.output, (".kinetre.jsonl",))
+    quiet_mediapipe()
+    settings = CaptureSettings(fov_degrees=args.fov, smooth=not args.no_smooth)
+    if args.video is not None:
+        take = capture_video(args.video, settings, max_frames=args.max_frames, progress=not args.quiet)
+        from ..motion.stream import write_stream
+        write_stream(args.output, take)
+        tracked = take.tracked.any(axis=1).sum()
+        print(f"wrote {args.output}: {len(take)} frames at {take.fps:g} fps, a person in {tracked}")
+        return 0
+    files = []  # the take file is created at the first frame, so a camera that fails leaves nothing behind
+
+    def on_frame(skeleton, t):
+        if not files:
+            try:
+                f = open(args.output, "w", encoding="utf-8")
+            except OSError as e:
+                raise UsageError(f"{args.output}: cannot write ({e.strerror})") from None
+            files.append((f, TakeWriter(f, KINECT20, args.camera_fps, f"camera {args.camera}")))
+            if not args.quiet:
+                print(f"recording camera {args.camera} to {args.output} (Ctrl+C to stop)", file=sys.stderr)
+        files[0][1].write(skeleton, t)
+
+    try:
+        count = capture_camera(args.camera, on_frame, settings, seconds=args.seconds, max_frames=args.max_frames)
+    finally:
+        for f, _ in files:
+            f.close()
+    if not count:
+        raise UsageError(f"camera {args.camera}: no frames arrived")
+    print(f"wrote {args.output}: {count} frames")
+    return 0

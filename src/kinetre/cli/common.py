@@ -1,0 +1,92 @@
+"""What the command-line commands share: the usage error, output types, frame ranges, motion loading, the
+examples under `--help` and the room options of the networked commands."""
+from __future__ import annotations
+
+import os
+
+from ..errors import KinetreError
+
+EPILOG = """examples:
+  kinetre animate chair.obj --motion walk.bvh -o chair_walk.glb
+  kinetre animate lamp.obj --motion walk.bvh --subset "HipCenter,right arm" -o lamp.mp4
+  kinetre animate spot.obj --motion take.kinetre.jsonl --fit --yaw 90 -o spot.glb
+  kinetre animate horse.ply --motion Fox.glb#Walk -o horse.glb
+  kinetre animate horse.ply --motion a.bvh --motion b.bvh --map two-people.json -o horse.glb
+  kinetre animate frames/ --motion walk.bvh -o scan_walk.glb
+  kinetre info Fox.glb
+  kinetre capture --video clip.mp4 -o take.kinetre.jsonl
+  kinetre capture --camera 0 --seconds 10 -o take.kinetre.jsonl
+  kinetre record walk.bvh -o walk.kinetre.jsonl
+  kinetre info walk.bvh
+  kinetre graph spot.obj --nodes 128 -o spot_graph.ply
+  kinetre studio spot.obj --port 8000
+  kinetre scene horse.obj --nats nats://HOST:4222 --room stage --token SECRET
+  kinetre avatar CesiumMan.glb --motion walk.bvh -o cesium_walk.glb
+"""
+
+VIDEO_EXTS = (".mp4", ".mov", ".avi", ".mkv", ".webm")
+
+
+class UsageError(KinetreError):
+    """A command-line argument that does not make sense (reported like any bad input)."""
+
+
+def output_ext(path: str, choices) -> str:
+    """The output type of `path` among `choices` (longest match first: `.kinetre.jsonl` before `.jsonl`)."""
+    low = path.lower()
+    for ext in sorted(choices, key=len, reverse=True):
+        if low.endswith(ext):
+            return ext
+    raise UsageError(f"{path}: unsupported output type (expected {', '.join(choices)})")
+
+
+def frame_range(spec: str | None) -> slice:
+    """`--frames START:END` (either end may be empty) as a slice; no spec is every frame."""
+    if not spec:
+        return slice(None)
+    parts = spec.split(":")
+    try:
+        if len(parts) != 2:
+            raise ValueError
+        start, stop = (int(p) if p.strip() else None for p in parts)
+    except ValueError:
+        raise UsageError(f"--frames must be START:END (e.g. 0:60), got {spec!r}") from None
+    return slice(start, stop)
+
+
+def load_motion(path: str, scale: float | None, as_kinect: bool = True):
+    """A motion file (BVH, glTF animation, recorded take) as a Take; `--scale` and `--own-skeleton`
+    apply only where the file has a skeleton of its own."""
+    from ..motion.gltf import is_gltf
+    from ..motion.source import load_take
+    if is_gltf(path):
+        if scale is not None:
+            raise UsageError("--scale applies to BVH files only")
+        return load_take(path, as_kinect=as_kinect)
+    if not path.lower().endswith(".bvh") and (scale is not None or not as_kinect):
+        raise UsageError("--scale and --own-skeleton apply to BVH and glTF files only")
+    if path.lower().endswith(".bvh"):
+        return load_take(path, scale=scale, as_kinect=as_kinect)
+    return load_take(path)
+
+
+def quiet_mediapipe() -> None:
+    """Keep a command's stderr for its errors: MediaPipe's C++ side logs through glog/absl there."""
+    os.environ.setdefault("GLOG_minloglevel", "2")
+    os.environ.setdefault("TF_CPP_MIN_LOG_LEVEL", "2")
+
+
+def room_token(args) -> str | None:
+    """The room token from --token or the KINETRE_TOKEN environment variable (kept out of `ps`)."""
+    return args.token or os.environ.get("KINETRE_TOKEN") or None
+
+
+def add_room_options(p) -> None:
+    """--nats, --room, --token and --nkey: which room of which NATS server a networked command joins."""
+    p.add_argument("--nats", metavar="URL", default=None,
+                   help="channels on this NATS server (nats://HOST:4222) instead of the embedded hub")
+    p.add_argument("--room", default="main", help="the room's name (its subjects are kinetre.ROOM.*)")
+    p.add_argument("--token", default=None, help="the room's token (or KINETRE_TOKEN); required off loopback")
+    p.add_argument("--nkey", metavar="FILE", default=None,
+                   help="the room's NATS nkey seed file: authenticates to NATS instead of the token "
+                        "(`kinetre rooms ROOM=@FILE` makes one)")
