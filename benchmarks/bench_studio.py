@@ -27,10 +27,11 @@ from studio.conftest import start_server  # noqa: E402
 from studio.studio_ws import StudioClient, frame_message  # noqa: E402
 
 from kinetre.motion.bvh import load_bvh  # noqa: E402
-from kinetre.studio.app import data_path, prepare_mesh  # noqa: E402
 from kinetre.studio.channels import Frame, Hub  # noqa: E402
+from kinetre.studio.meshes import data_path, prepare_mesh  # noqa: E402
 from kinetre.studio.protocol import skeleton_json  # noqa: E402
-from kinetre.studio.scene import TRANSFORMS, Scene  # noqa: E402
+from kinetre.studio.scene import Scene  # noqa: E402
+from kinetre.studio.subjects import TRANSFORMS  # noqa: E402
 
 NODES = 256
 FRAMES = 120

@@ -16,7 +16,7 @@ from scipy.spatial.transform import Rotation
 import kinetre
 from kinetre.physics.take import read_take_transforms, write_take_transforms
 from kinetre.skeleton.models import KINECT20, Skeleton
-from kinetre.studio.app import data_path, mesh_payload, prepare_mesh
+from kinetre.studio.meshes import data_path, mesh_payload, prepare_mesh
 from physics.node_replay import bundle, node_replay
 
 FPS = 30.0

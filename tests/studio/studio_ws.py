@@ -8,7 +8,7 @@ import time
 import numpy as np
 from websockets.asyncio.client import connect
 
-from kinetre.studio.protocol import unpack_transforms
+from kinetre.wire.transforms import unpack_transforms
 
 
 def frame_message(seq: int, skeleton, t: float | None = None) -> str:

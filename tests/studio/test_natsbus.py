@@ -11,12 +11,14 @@ import pytest
 from studio.nats_server import ROOMS, NatsServer
 from studio.studio_ws import frame_message
 
-from kinetre.studio.app import data_path, prepare_mesh
 from kinetre.studio import natsbus
 from kinetre.studio.channels import Frame, Hub
-from kinetre.studio.natsbus import NatsChannels, _Delivery, _ReadNow, _Resumed
+from kinetre.studio.meshes import data_path, prepare_mesh
+from kinetre.studio.natsbus import NatsChannels
+from kinetre.studio.natspatch import DirectDelivery, ReadNow, Resumed
 from kinetre.studio.remote import SceneMirror
-from kinetre.studio.scene import STATE, Scene
+from kinetre.studio.scene import Scene
+from kinetre.studio.subjects import STATE
 
 
 @pytest.fixture(scope="module")
@@ -48,7 +50,7 @@ def test_frames_reach_the_wire_in_the_publishers_call(nats):
         sender, receiver = await pair(nats.url)
         sub = receiver.subscribe("kinetre.command.x")  # queued subject: every frame is kept
         await receiver.ready()
-        assert isinstance(receiver._subs["kinetre.a.command.x"]._pending_queue, _Delivery)
+        assert isinstance(receiver._subs["kinetre.a.command.x"]._pending_queue, DirectDelivery)
         before = sender.nc.stats["out_msgs"]
         for seq in range(1, 51):
             sender.publish(Frame("kinetre.command.x", seq, float(seq), b"frame %d" % seq))
@@ -60,7 +62,7 @@ def test_frames_reach_the_wire_in_the_publishers_call(nats):
         await receiver.close()
         return got, read_now
     got, read_now = asyncio.run(go())
-    assert isinstance(read_now, _ReadNow) and read_now.parsed > 0  # parsed in the socket's callback
+    assert isinstance(read_now, ReadNow) and read_now.parsed > 0  # parsed in the socket's callback
     assert [f.seq for f in got] == list(range(1, 51))
     assert [f.data for f in got] == [b"frame %d" % s for s in range(1, 51)]
 
@@ -137,14 +139,15 @@ def test_gateway_batches_the_frames_of_users_who_do_not_possess():
     assert then == {"kinetre.skeleton.s2-c1"}
 
 
-def test_a_publish_that_must_wait_for_the_flusher_still_arrives_in_order(nats):
+def test_a_publish_that_must_wait_for_the_flusher_still_arrives_in_order(nats, monkeypatch):
     """With nats-py's pending buffer over its limit every publish waits for the flusher: the rest of the
     call goes on in a task, and nothing is lost or reordered."""
     async def go():
         sender, receiver = await pair(nats.url)
         sub = receiver.subscribe("kinetre.command.y")
         await receiver.ready()
-        sender._write_now = lambda subject, payload: False  # through nats-py's buffer, as when it holds data
+        # through nats-py's buffer, as when it holds data
+        monkeypatch.setattr(natsbus, "write_pub", lambda nc, subject, payload: False)
         sender.nc._max_pending_size = 1  # every PUB is over the limit: nats-py forces a flush and waits
         for seq in range(1, 31):
             sender.publish(Frame("kinetre.command.y", seq, float(seq), bytes(1000)))
@@ -177,7 +180,7 @@ def test_reads_are_parsed_in_the_sockets_callback_in_order():
     async def go():
         reader = asyncio.StreamReader()
         nc = SimpleNamespace(_ps=Parser(), _transport=SimpleNamespace(_io_reader=reader))
-        assert _ReadNow.install(nc)
+        assert ReadNow.install(nc)
         reading = asyncio.get_running_loop().create_task(reader.read(100))  # nats-py's reader, waiting
         await asyncio.sleep(0)
         for data in (b"a", b"slow", b"b", b"c"):
@@ -209,11 +212,11 @@ def test_resumed_coroutine_ends_as_the_coroutine_would():
     async def go():
         call = later(21)
         waiting = call.send(None)  # runs up to the sleep
-        value = await _Resumed(call, waiting)
+        value = await Resumed(call, waiting)
         call = failing()
         waiting = call.send(None)
         with pytest.raises(ValueError, match="nope"):
-            await _Resumed(call, waiting)
+            await Resumed(call, waiting)
         return value
     assert asyncio.run(go()) == 42
 
@@ -350,3 +353,17 @@ def test_a_solve_waits_for_a_possessors_frame_that_is_due(walk, monkeypatch):
     assert solved == [[x, x]] and later is None
     solved, x, _ = run_two_users(walk, monkeypatch, 0.016)  # half a period out of step; a solve takes 20 ms
     assert solved[0][0] == x and solved[0][1] != x and solved[1] == [x, x]
+
+
+def test_a_nats_py_the_fast_paths_were_not_checked_against_is_refused_before_connecting(monkeypatch):
+    """natspatch relies on nats-py internals: the installed version is one it names, and any other stops
+    `start` with a line saying what to install (no connection is tried: the URL has no server)."""
+    import importlib.metadata
+
+    from kinetre.studio.natspatch import CHECKED_VERSIONS, NatsVersionError, check_nats_version
+    assert check_nats_version() in CHECKED_VERSIONS
+    monkeypatch.setattr(importlib.metadata, "version", lambda name: "2.9.0")
+    with pytest.raises(NatsVersionError) as refused:
+        asyncio.run(NatsChannels("a").start("nats://127.0.0.1:9"))
+    assert str(refused.value).startswith("nats-py 2.9.0 is installed")
+    assert f"pip install nats-py=={CHECKED_VERSIONS[-1]}" in str(refused.value)

@@ -22,12 +22,12 @@ from studio.nats_server import ROOMS, NatsServer
 from studio.studio_ws import StudioClient, frame_message
 
 from kinetre.cli import main
-from kinetre.studio.app import data_path, prepare_mesh
 from kinetre.studio.channels import Frame, Hub
+from kinetre.studio.meshes import data_path, prepare_mesh
 from kinetre.studio.natsbus import NatsChannels, NetworkError
-from kinetre.studio.protocol import unpack_transforms
 from kinetre.studio.scene import Scene
 from kinetre.studio.takelog import read_take_log
+from kinetre.wire.transforms import unpack_transforms
 
 NODES = 64
 A, B = ROOMS["a"], ROOMS["b"]

@@ -5,8 +5,8 @@ import pytest
 import kinetre
 from kinetre.deform.pose import GraphPose
 from kinetre.studio.placement import Placement, standing_mesh
-from kinetre.studio.protocol import pack_transforms, unpack_transforms
 from kinetre.studio.scene import TakeFrame, resample
+from kinetre.wire.transforms import pack_transforms, unpack_transforms
 
 
 def test_to_local_inverts_the_model_matrix(walk):

@@ -7,8 +7,8 @@ import signal
 import numpy as np
 import pytest
 
-from kinetre.studio.app import data_path, prepare_mesh
 from kinetre.studio.channels import Frame, Hub
+from kinetre.studio.meshes import data_path, prepare_mesh
 from kinetre.studio.scene import Scene
 from kinetre.studio.solve_worker import InlineSolver, SolverLost, SolveWorker
 

@@ -10,7 +10,7 @@ import pytest
 
 from kinetre.deform.solver import SolverSettings
 from kinetre.studio import solve_worker
-from kinetre.studio.app import data_path, prepare_mesh
+from kinetre.studio.meshes import data_path, prepare_mesh
 from kinetre.studio.placement import Placement
 
 
@@ -82,8 +82,9 @@ def test_a_pose_solved_while_a_newer_frame_waits_goes_out_once_the_next_solve_is
     frame waiting is published right after the next solve has been asked for (not before: the solver works
     meanwhile), one without is published at once. `late` asks a solve whose frame is that old to yield."""
     from kinetre.studio.channels import Frame, Hub
-    from kinetre.studio.protocol import unpack_transforms
-    from kinetre.studio.scene import TRANSFORMS, Scene
+    from kinetre.studio.scene import Scene
+    from kinetre.studio.subjects import TRANSFORMS
+    from kinetre.wire.transforms import unpack_transforms
     mesh, graph = spot64
     hub = Hub()
     published = []

@@ -1,7 +1,7 @@
 """A take's node matrices for the page's physics replay: one transform block per frame, concatenated.
 
-Each block is the studio's binary "KTX1" block (studio/protocol.py: 32-byte header, then N × 12 float32,
-the top three rows of each node matrix): seq = frame index, t_source = the frame's time in ms from the
+Each block is the binary node-transform block the studio publishes (kinetre/wire/transforms.py: 32-byte
+header, then N × 12 float32, the top three rows of each node matrix): seq = frame index, t_source = the frame's time in ms from the
 start. The page (web/src/physics/TakeReplay.ts) carries the sphere proxies with these frames, so the
 replayed physics sees exactly the take's deformation.
 """
@@ -14,7 +14,7 @@ import numpy as np
 from ..deform.pose import GraphPose
 from ..errors import BadMotionError
 from ..graph.graph import DeformationGraph
-from ..studio.protocol import HEADER, ProtocolError, pack_transforms, unpack_transforms
+from ..wire.transforms import HEADER, TransformBlockError, block_size, pack_transforms, unpack_transforms
 
 
 def write_take_transforms(path: str | Path, graph: DeformationGraph, poses: list[GraphPose], fps: float,
@@ -34,10 +34,10 @@ def read_take_transforms(path: str | Path) -> np.ndarray:
         if len(data) - offset < HEADER.size:
             raise BadMotionError(f"{path}: {len(data) - offset} stray bytes after frame {len(frames)}")
         n = HEADER.unpack_from(data, offset)[3]
-        size = HEADER.size + 48 * n
+        size = block_size(n)
         try:
             frames.append(unpack_transforms(data[offset:offset + size])[4])
-        except ProtocolError:
+        except TransformBlockError:
             raise BadMotionError(f"{path}: frame {len(frames)} is not a transform block") from None
         offset += size
     if not frames:

@@ -1,4 +1,4 @@
-"""Who may use a studio: its room's token, checked on every HTTP request and WebSocket (issue 12).
+"""Who may use a studio: its room's token, checked on every HTTP request and WebSocket.
 
 The link to share is `http://HOST:PORT/?token=TOKEN`: the page's first request carries the token and
 gets it back as a cookie for the room, so its later fetches and its WebSocket need nothing more.

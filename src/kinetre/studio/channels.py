@@ -1,4 +1,4 @@
-"""Publish/subscribe channels between capture clients, the scene and viewers (`003_…` §2, SPEC §7).
+"""Publish/subscribe channels between capture clients, the scene and viewers.
 
 Every capture client publishes its skeleton frames on its own subject, the scene publishes node
 transforms on one subject, and any number of viewers subscribe. Subjects follow NATS syntax
@@ -8,8 +8,8 @@ embedded `Hub` for many machines: a replacement implements the same two methods,
 
 Delivery is *latest wins per subject* for live data: a subscriber that falls behind sees only the newest
 frame of each subject, never a queue. Memory per subscription is bounded by the number of subjects it
-matches. Replies to one client ("kinetre.client.<c>") and commands ("kinetre.command.<c>") are queued
-instead: every error message must reach its page, every command its scene.
+matches. Replies to one client and commands (subjects.QUEUED_KINDS) are queued instead: every error
+message must reach its page, every command its scene.
 
     >>> import asyncio
     >>> async def demo():
@@ -27,6 +27,8 @@ import asyncio
 import time
 from dataclasses import dataclass, field
 from typing import Any, Protocol
+
+from .subjects import QUEUED_KINDS, kind
 
 
 @dataclass(frozen=True)
@@ -53,6 +55,11 @@ class Frame:
     t: float
     data: bytes
     value: Any = field(default=None, compare=False, repr=False)
+
+
+def now_ms() -> float:
+    """A frame timestamp: milliseconds since the Unix epoch."""
+    return time.time() * 1000.0
 
 
 def subject_matches(pattern: str, subject: str) -> bool:
@@ -94,7 +101,7 @@ class Subscription:
         mode = self._is_urgent.get(frame.subject)
         if mode is None:
             mode = self._is_urgent[frame.subject] = (any(subject_matches(p, frame.subject) for p in self.urgent),
-                                                     frame.subject.split(".")[1:2] in (["client"], ["command"]))
+                                                     kind(frame.subject) in QUEUED_KINDS)
         slots = self._first if mode[0] else self._latest
         if mode[1]:
             self._queued += 1

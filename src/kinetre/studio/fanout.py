@@ -1,4 +1,4 @@
-"""Transform blocks written straight to the viewers' sockets, framed once per block (issue 12).
+"""Transform blocks written straight to the viewers' sockets, framed once per block.
 
 Every solved frame goes to every connected page: 120 pages at 40 Hz is ~5,000 WebSocket messages a
 second of 12 kB. Through ASGI each send costs the studio's event loop ~25 µs of CPU (Starlette's send

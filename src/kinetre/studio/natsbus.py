@@ -23,6 +23,9 @@ newest frame of each subject), and a frame older than the newest one delivered o
 sequence number and capture time) is dropped as late. Publishers send every frame, so a gap in a
 subject's sequence numbers at the receiver is a frame lost on the way (`BusCounters.gaps`). Frames
 published while the server is unreachable are dropped by policy (counted), never queued for replay.
+
+Delivery and publishing skip nats-py's extra event-loop hops through its internals (natspatch.py, checked
+against the nats-py versions it names; `start` refuses others).
 """
 from __future__ import annotations
 
@@ -30,17 +33,17 @@ import asyncio
 import logging
 import os
 import struct
-from collections import deque
 from dataclasses import dataclass, field
 from pathlib import Path
 
 from ..errors import KinetreError
 from .channels import Frame, Subscription, subject_matches
+from .natspatch import ReadNow, Resumed, check_nats_version, subscribe_direct, write_pub
+from .subjects import LIVE_KINDS, NAMESPACE, kind
 
 log = logging.getLogger("kinetre.network")
 
 ENVELOPE = struct.Struct("<Qd")  # seq, capture timestamp (ms)
-LIVE_KINDS = ("skeleton", "transforms", "state")  # latest-wins subjects; commands and replies keep every message
 ROOM_CHARS = set("abcdefghijklmnopqrstuvwxyzABCDEFGHIJKLMNOPQRSTUVWXYZ0123456789-_")
 
 
@@ -114,7 +117,7 @@ def server_config(rooms: dict[str, str], port: int, host: str = "127.0.0.1", max
         check_room(room)
         if not token or '"' in token or "\\" in token:
             raise NetworkError(f"room {room!r}: the token must be non-empty, without quotes or backslashes")
-        allow = f'["kinetre.{room}.>"]'
+        allow = f'["{NAMESPACE}{room}.>"]'
         who = f'nkey: "{token}"' if is_nkey_user(token) else f'user: "{room}", password: "{token}"'
         users.append(f'    {{{who}, '
                      f'permissions: {{publish: {{allow: {allow}}}, subscribe: {{allow: {allow}}}}}}}')
@@ -122,145 +125,10 @@ def server_config(rooms: dict[str, str], port: int, host: str = "127.0.0.1", max
             "authorization {\n  users = [\n" + ",\n".join(users) + "\n  ]\n}\n")
 
 
-class _Resumed:
-    """An awaitable that goes on with a coroutine which already ran up to its first suspension (`waiting`,
-    the future it yielded): `await _Resumed(coro, waiting)` ends as `await coro` would have."""
-
-    def __init__(self, coro, waiting):
-        self.coro, self.waiting = coro, waiting
-
-    def __await__(self):
-        value = self.waiting
-        while True:
-            try:
-                sent = yield value
-            except BaseException as exc:  # e.g. cancelled: passed on into the coroutine
-                try:
-                    value = self.coro.throw(exc)
-                except StopIteration as stop:
-                    return stop.value
-                continue
-            try:
-                value = self.coro.send(sent)
-            except StopIteration as stop:
-                return stop.value
-
-
-class _Delivery(asyncio.Queue):
-    """A nats-py subscription's message queue that hands each message on as the connection's reader parses
-    it, instead of keeping it for a task of the subscription's own (one event-loop iteration later)."""
-
-    def __init__(self, sub, take):
-        super().__init__()
-        self.sub, self.take = sub, take
-
-    def put_nowait(self, msg) -> None:
-        if hasattr(self.sub, "_pending_size"):  # counted as pending by the reader just before
-            self.sub._pending_size -= len(msg.data)
-        try:
-            self.take(msg)
-        except Exception:  # one bad message must not stop the connection's reader
-            log.exception("delivering %s", msg.subject)
-
-
-async def subscribe_direct(nc, subject: str, take):
-    """A nats-py subscription whose messages reach `take(msg)` (a plain function) in the connection's reader.
-
-    nats-py (2.x) gives each callback subscription a task that awaits the subscription's queue, so every
-    message would wait one more event-loop iteration, behind everything else ready then; a subscription
-    without a callback has only the queue (`Subscription._pending_queue`, filled by the reader with
-    `put_nowait`), which is replaced here by one that delivers at once. A nats-py without that queue gets
-    an ordinary callback subscription.
-    """
-    sub = await nc.subscribe(subject)
-    old = getattr(sub, "_pending_queue", None)
-    if not isinstance(old, asyncio.Queue):
-        await sub.unsubscribe()
-
-        async def call(msg) -> None:
-            take(msg)
-        return await nc.subscribe(subject, cb=call)
-    sub._pending_queue = _Delivery(sub, take)
-    while not old.empty():  # none normally: the server has not seen the SUB yet
-        sub._pending_queue.put_nowait(old.get_nowait())
-    return sub
-
-
-class _ReadNow:
-    """Hands the bytes of a nats-py connection to its protocol parser in the socket's own callback.
-
-    nats-py's reader task awaits its StreamReader: every message waits one more event-loop iteration,
-    behind whatever else is ready then (on a busy gateway, p99 5-8 ms for a transform block). Installed as
-    the StreamReader's `feed_data`, this parses the data at once whenever nats-py's reader is idle (waiting
-    for data with nothing buffered), so the order is kept; otherwise, and for EOF and errors, the data goes
-    to the StreamReader as before. A parse that must wait (nats-py awaiting a full queue, or an error
-    handler) finishes in a task, and data arriving meanwhile is parsed after it. Uses nats-py 2.x internals
-    (the transport's `_io_reader`, the client's `_ps`); without them nothing is installed.
-    """
-
-    def __init__(self, nc, reader: asyncio.StreamReader):
-        self.nc, self.reader = nc, reader
-        self.feed = reader.feed_data  # the StreamReader's own
-        self.behind: deque | None = None  # data that arrived while a parse was waiting
-        self.parsed = 0  # reads parsed in the socket's callback
-        reader.feed_data = self
-
-    @classmethod
-    def install(cls, nc) -> bool:
-        reader = getattr(getattr(nc, "_transport", None), "_io_reader", None)
-        if not isinstance(reader, asyncio.StreamReader) or not hasattr(nc, "_ps"):
-            return False
-        if not isinstance(reader.__dict__.get("feed_data"), cls):
-            cls(nc, reader)
-        return True
-
-    def __call__(self, data) -> None:
-        if self.behind is not None:
-            self.behind.append(bytes(data))
-            return
-        r = self.reader
-        waiter = getattr(r, "_waiter", None)
-        if not data or r._buffer or waiter is None or waiter.done() or r.at_eof() or r.exception() is not None:
-            self.feed(data)  # nats-py's reader is busy or has data of its own to parse first
-            return
-        self._parse(data)
-
-    def _parse(self, data) -> None:
-        self.parsed += 1
-        call = self.nc._ps.parse(data)
-        try:
-            waiting = call.send(None)
-        except StopIteration:
-            return
-        except Exception as exc:
-            self._failed(exc)
-            return
-        self.behind = deque()
-        asyncio.get_running_loop().create_task(self._finish(_Resumed(call, waiting)))
-
-    async def _finish(self, call) -> None:
-        try:
-            await call
-            while self.behind:
-                await self.nc._ps.parse(self.behind.popleft())
-        except Exception as exc:
-            self._failed(exc)
-        finally:
-            self.behind = None
-
-    def _failed(self, exc: Exception) -> None:
-        """As nats-py's reader would: a protocol error closes the connection (it then reconnects)."""
-        import nats.errors
-        self.reader.feed_data = self.feed
-        log.debug("NATS parse failed: %s", exc)
-        error = exc if isinstance(exc, nats.errors.ProtocolError) else nats.errors.ProtocolError()
-        asyncio.get_running_loop().create_task(self.nc._process_op_err(error))
-
-
 @dataclass
 class BusCounters:
     published: int = 0
-    written: int = 0  # of those, written to the socket in the publisher's call (`NatsChannels._write_now`)
+    written: int = 0  # of those, written to the socket in the publisher's call (`natspatch.write_pub`)
     offline: int = 0  # frames published while the server was unreachable (dropped by policy)
     received: int = 0
     late: int = 0  # frames older than the newest delivered on their subject (dropped by policy)
@@ -280,7 +148,7 @@ class NatsChannels:
         self.room = check_room(room)
         self.nc = None
         self.url = ""
-        self.prefix = f"kinetre.{room}."
+        self.prefix = f"{NAMESPACE}{room}."
         self.counters = BusCounters()
         self._subs: dict[str, object] = {}  # wire pattern → nats subscription (or the task creating it)
         self._local: dict[str, list[Subscription]] = {}  # wire pattern → our subscriptions
@@ -302,6 +170,7 @@ class NatsChannels:
                     nkey: str | Path | None = None) -> None:
         """Connect as the room's user: with the room's nkey seed file `nkey` if given, else its `token`;
         raises NetworkError (with the reason) when refused or unreachable."""
+        check_nats_version()  # the fast paths rely on nats-py internals (natspatch.py)
         import nats
         import nats.errors
         room = self.room
@@ -314,7 +183,7 @@ class NatsChannels:
 
         async def reconnected_cb():
             counters.reconnects += 1
-            _ReadNow.install(self.nc)  # the new connection's reader
+            ReadNow.install(self.nc)  # the new connection's reader
 
         auth = {"user": room, "password": token} if token else {}
         if nkey:
@@ -331,7 +200,7 @@ class NatsChannels:
                 # a live studio resumes fast after a server restart and never gives up
                 reconnect_time_wait=0.2, max_reconnect_attempts=-1, connect_timeout=2,
                 allow_reconnect=True, ping_interval=5, max_outstanding_pings=2,
-                inbox_prefix=f"kinetre.{room}._INBOX", **auth), timeout)
+                inbox_prefix=f"{NAMESPACE}{room}._INBOX", **auth), timeout)
         except (nats.errors.NoServersError, OSError, asyncio.TimeoutError):
             raise NetworkError(f"{url}: no NATS server answers there (is nats-server running?)") from None
         except nats.errors.Error as exc:
@@ -344,27 +213,27 @@ class NatsChannels:
                           "(the NATS user is the room's name, its password the room's token)")
             raise NetworkError(f"{url}: {reason}") from None
         self.nc, self.url = nc, url
-        _ReadNow.install(nc)
+        ReadNow.install(nc)
         for wire in list(self._local):
             self._subs[wire] = asyncio.get_running_loop().create_task(self._nats_subscribe(wire))
 
     # --- subjects ---------------------------------------------------------------------------------------
     def wire(self, subject: str) -> str:
         """"kinetre.transforms" → "kinetre.<room>.transforms"."""
-        if not subject.startswith("kinetre."):
+        if not subject.startswith(NAMESPACE):
             raise NetworkError(f"subject {subject!r} is outside the studio's namespace")
-        return self.prefix + subject[len("kinetre."):]
+        return self.prefix + subject[len(NAMESPACE):]
 
     def local(self, wire_subject: str) -> str:
-        return "kinetre." + wire_subject[len(self.prefix):]
+        return NAMESPACE + wire_subject[len(self.prefix):]
 
     # --- publishing -------------------------------------------------------------------------------------
     def publish(self, frame: Frame) -> None:
         """Hand the frame to the connection now, in the caller's own call (no task of ours in between).
 
         When nothing is waiting in nats-py's pending buffer, the PUB command is written to the socket here
-        (`_write_now`), unless its subject is in `batched`. Otherwise it goes through nats-py's `publish`, a
-        coroutine that, while connected, does not suspend: it appends the command to the pending buffer and
+        (`natspatch.write_pub`), unless its subject is in `batched`. Otherwise it goes through nats-py's
+        `publish`, a coroutine that, while connected, does not suspend: it appends the command to the pending buffer and
         wakes the connection's flusher task, which writes everything pending in one go. So it is run here to
         completion synchronously; only when it does suspend (the pending buffer is over its `pending_size` and
         it waits for the flusher) is the rest left to a task, the command being queued already, so order is
@@ -378,7 +247,7 @@ class NatsChannels:
         plain = self._plain.get(subject)
         if plain is None:  # a subject that cannot be one PUB line goes to nats-py, which refuses it
             plain = self._plain[subject] = not any(c in subject for c in " \t\r\n")
-        if plain and frame.subject not in self.batched and self._write_now(subject, payload):
+        if plain and frame.subject not in self.batched and write_pub(self.nc, subject, payload):
             self.counters.published += 1
             self.counters.written += 1
             return
@@ -393,32 +262,7 @@ class NatsChannels:
             log.debug("publish on %s failed: %s", subject, exc)
             return
         self.counters.published += 1
-        self._finishing.add(asyncio.get_running_loop().create_task(self._finish(_Resumed(call, waiting), subject)))
-
-    def _write_now(self, subject: str, payload: bytes) -> bool:
-        """Write one PUB straight to the connection's socket when that keeps nats-py's order and limits.
-
-        nats-py's flusher task would write it one event-loop iteration later, behind whatever else is ready
-        then (on a busy studio, a few ms at the tail for every transform block and skeleton frame). Only
-        while connected (not draining or reconnecting: then nats-py's own buffering applies), with its
-        pending buffer empty (everything published before is already in the socket's hands, so the order
-        holds), a plain TCP/TLS stream (nats-py's `_io_writer`; its WebSocket transport queues writes in a
-        task of its own) with nothing buffered in the transport (else nats-py's flusher waits for it to
-        drain), and a payload within the server's limit (nats-py raises on a larger one). Uses nats-py 2.x
-        internals (bounded in pyproject); when one is missing, every frame goes through `nc.publish`.
-        """
-        nc = self.nc
-        try:
-            writer = nc._transport._io_writer
-            if (nc._status != nc.CONNECTED or nc._pending_data_size or len(payload) > nc._max_payload
-                    or writer is None or writer.transport.is_closing() or writer.transport.get_write_buffer_size()):
-                return False
-            writer.write(b"PUB %b %d\r\n%b\r\n" % (subject.encode(), len(payload), payload))  # NATS's PUB
-        except AttributeError:
-            return False
-        nc.stats["out_msgs"] += 1
-        nc.stats["out_bytes"] += len(payload)
-        return True
+        self._finishing.add(asyncio.get_running_loop().create_task(self._finish(Resumed(call, waiting), subject)))
 
     async def _finish(self, call, subject: str) -> None:
         try:
@@ -447,8 +291,7 @@ class NatsChannels:
             if frame is None:
                 return
             self.counters.received += 1
-            kind = frame.subject.split(".")[1]
-            if kind in LIVE_KINDS:
+            if kind(frame.subject) in LIVE_KINDS:
                 newest = self._newest.get(frame.subject)
                 if newest is not None and frame.seq <= newest[0] and frame.t <= newest[1]:
                     self.counters.late += 1
@@ -546,3 +389,9 @@ class NatsChannels:
             await self.nc.drain()
         except Exception:
             await self.nc.close()
+
+
+async def probe_nats(url: str, room: str, token: str | None, nkey: str | None = None) -> None:
+    """Connect to the room once and leave; raises NetworkError with the reason."""
+    bus = await NatsChannels.connect(url, room, token, name="kinetre-probe", nkey=nkey)
+    await bus.close()

@@ -65,7 +65,7 @@ def standing_mesh(mesh: Mesh, height: float = 1.6) -> Mesh:
     """The mesh scaled to `height` metres tall, centred on x = z = 0 with its lowest point on y = 0.
 
     Meshes come in any unit (a teapot 3.15 units tall, a scan in millimetres); the studio works in
-    metres so that the attachment distances (10 cm, SPEC §3.2) mean the same on every mesh.
+    metres so that the attachment distances (10 cm) mean the same on every mesh.
     """
     lo, hi = mesh.bounds
     extent = float(hi[1] - lo[1]) or float(np.max(hi - lo))

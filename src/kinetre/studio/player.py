@@ -1,20 +1,23 @@
 """A server-side capture client that plays recorded motion (a BVH take) on its own skeleton channel.
 
 It is the sample motion that keeps the page alive before any camera is granted: it publishes frames
-exactly like a webcam page does ("kinetre.skeleton.<client>"), so the scene cannot tell them apart.
+exactly like a webcam page does (on `skeleton_subject(client)`), so the scene cannot tell them apart.
 """
 from __future__ import annotations
 
 import asyncio
-import time
 from dataclasses import dataclass
 
 import numpy as np
 
+from ..errors import KinetreError
 from ..skeleton.models import Skeleton
-from .channels import Channels, Frame
+from .channels import Channels, Frame, now_ms
+from .meshes import data_path
 from .protocol import skeleton_json
-from .scene import skeleton_subject
+from .subjects import skeleton_subject
+
+SAMPLE_CLIENT = "sample"
 
 
 def in_place(frames: list[Skeleton], root: int = 0) -> list[Skeleton]:
@@ -31,7 +34,7 @@ def in_place(frames: list[Skeleton], root: int = 0) -> list[Skeleton]:
 
 @dataclass
 class MotionPlayer:
-    """Loops `frames` at `fps` on "kinetre.skeleton.<client>" while `playing`.
+    """Loops `frames` at `fps` on `skeleton_subject(client)` while `playing`.
 
     Attributes
     ----------
@@ -46,7 +49,7 @@ class MotionPlayer:
     hub: Channels
     frames: list[Skeleton]
     fps: float
-    client: str = "sample"
+    client: str = SAMPLE_CLIENT
     playing: bool = True
     seq: int = 0
 
@@ -68,15 +71,24 @@ class MotionPlayer:
         while True:
             if self.playing:
                 index = int((loop.time() - start) / period)
-                self.publish(index, _now_ms())
+                self.publish(index, now_ms())
             await asyncio.sleep(period)
-
-
-def _now_ms() -> float:
-    return time.time() * 1000.0
 
 
 def decimate(frames: list[Skeleton], fps: float, target: float = 30.0) -> tuple[list[Skeleton], float]:
     """Every k-th frame so the rate is about `target` (a 120 fps BVH becomes 30 fps)."""
     step = max(1, int(round(fps / target)))
     return frames[::step], fps / step
+
+
+def sample_player(hub: Channels) -> MotionPlayer | None:
+    """The CMU walk (shipped in kinetre/data) as a looping capture client, or None if it cannot load."""
+    try:
+        from ..motion.bvh import load_bvh
+        take = load_bvh(str(data_path("cmu_12_01_walk.bvh")))
+        frames = [take.frame(i) for i in range(len(take))]
+        fps = float(take.fps)
+    except (ImportError, KinetreError):
+        return None
+    frames, fps = decimate(in_place(frames), fps)
+    return MotionPlayer(hub, frames, fps, SAMPLE_CLIENT)

@@ -1,4 +1,4 @@
-"""The studio's wire format: JSON control/skeleton messages and the binary node-transform block.
+"""The studio's JSON messages: control commands and skeleton frames, checked as they arrive.
 
 Client → server (WebSocket text, JSON objects with a "type"):
     {"type": "skeleton", "seq": int, "t": ms, "model": "kinect20",
@@ -11,20 +11,12 @@ Client → server (WebSocket text, JSON objects with a "type"):
     {"type": "ack", "received": int}   (messages of any kind received so far, counting from the welcome)
 
 Server → client: JSON {"type": "welcome" | "state" | "skeleton" | "stats" | "error" | "progress", …}
-and binary transform blocks (little-endian):
-    offset 0   4s   b"KTX1"
-    offset 4   u32  seq (scene frame number)
-    offset 8   u32  mesh id (a page drops blocks for a mesh it has not loaded yet)
-    offset 12  u32  N nodes
-    offset 16  f64  t_source: timestamp (ms) of the newest skeleton frame the solve used
-    offset 24  f64  t_out: server time (ms) when the block was published
-    offset 32  f32  N × 12: the top three rows of each node matrix (pose.node_matrices), row-major
+and binary node-transform blocks (kinetre/wire/transforms.py).
 """
 from __future__ import annotations
 
 import json
 import math
-import struct
 from itertools import chain
 
 import numpy as np
@@ -32,8 +24,6 @@ import numpy as np
 from ..errors import BadSkeletonError
 from ..skeleton.models import MODELS, Skeleton
 
-MAGIC = b"KTX1"
-HEADER = struct.Struct("<4sIIIdd")
 MAX_MESSAGE = 1 << 16  # bytes; a Kinect-20 frame is ~1.5 kB
 _NUMBER_TYPES, _BOOL, _LIST, _THREE = {int, float}, {bool}, {list}, {3}
 
@@ -115,21 +105,3 @@ def with_client(text: str | bytes, client: str) -> bytes:
     """
     raw = text.encode() if isinstance(text, str) else text
     return raw.rstrip()[:-1] + b', "client": "' + client.encode() + b'"}'
-
-
-def pack_transforms(seq: int, mesh_id: int, matrices: np.ndarray, t_source: float, t_out: float) -> bytes:
-    """Binary block for (N, 4, 4) node matrices (see the module docstring)."""
-    n = matrices.shape[0]
-    body = np.ascontiguousarray(matrices[:, :3, :], dtype="<f4").tobytes()
-    return HEADER.pack(MAGIC, seq & 0xFFFFFFFF, mesh_id, n, t_source, t_out) + body
-
-
-def unpack_transforms(block: bytes) -> tuple[int, int, float, float, np.ndarray]:
-    """(seq, mesh_id, t_source, t_out, (N, 4, 4) float32) from `pack_transforms` output."""
-    magic, seq, mesh_id, n, t_source, t_out = HEADER.unpack_from(block)
-    if magic != MAGIC or len(block) != HEADER.size + 48 * n:
-        raise ProtocolError("not a transform block")
-    m = np.zeros((n, 4, 4), np.float32)
-    m[:, :3, :] = np.frombuffer(block, "<f4", offset=HEADER.size).reshape(n, 3, 4)
-    m[:, 3, 3] = 1.0
-    return seq, mesh_id, t_source, t_out, m

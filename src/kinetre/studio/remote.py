@@ -1,15 +1,15 @@
-"""A scene in its own process (`kinetre scene`) and studios that only relay pages to it over NATS (issue 12).
+"""A scene in its own process (`kinetre scene`) and studios that only relay pages to it over NATS.
 
     page ─WS─ studio --remote-scene ─┐                        ┌─ kinetre scene (mesh, graph, rig, solver)
     page ─WS─ studio --remote-scene ─┼─ NATS room kinetre.R.* ┤
     capture/viewer NATS clients ─────┘                        └─ its solve worker process
 
-The scene subscribes to the room's skeleton subjects, solves, and publishes transforms and its state
-(at least every `BEAT` s: its heartbeat). A gateway studio forwards each page's skeleton frames and
-commands (`kinetre.command.<client>`, every one delivered, in order), mirrors the scene's state and
-newest transforms for pages that connect, and fetches meshes and takes from the scene by
-request/reply in chunks below NATS's message cap. When the heartbeat stops for `LOST_AFTER` s the
-gateway tells its pages "scene lost"; the scene's next state clears it.
+The scene (a `LocalScene` served by `serve_scene`) subscribes to the room's skeleton subjects, solves, and
+publishes transforms and its state (at least every `BEAT` s: its heartbeat). A gateway studio's scene host
+(`GatewayScene`) forwards each page's commands (`command_subject`, every one delivered, in order), mirrors
+the scene's state and newest transforms for pages that connect (`SceneMirror`), and fetches meshes and takes
+from the scene by request/reply in chunks below NATS's message cap. When the heartbeat stops for
+`LOST_AFTER` s the gateway tells its pages "scene lost"; the scene's next state clears it.
 """
 from __future__ import annotations
 
@@ -20,35 +20,37 @@ import time
 from pathlib import Path
 
 from ..errors import KinetreError
-from .app import MAX_UPLOAD, ClientStats, Job, Studio, data_path, prepare_mesh, probe_nats, sample_player
-from .channels import Frame
-from .natsbus import NatsChannels
+from .channels import Frame, now_ms
+from .host import LocalScene, answer_error, apply
+from .jobs import MAX_UPLOAD, Job, Jobs
+from .meshes import NODES, data_path, prepare_mesh
+from .natsbus import NatsChannels, probe_nats
 from .placement import Placement
+from .player import sample_player
 from .protocol import ProtocolError, parse_message
-from .scene import STATE, TRANSFORMS, Scene, now_ms, skeleton_subject
+from .recording import Takes
+from .scene import Scene
 from .solve_worker import SolveWorker, freeze_heap
+from .subjects import (COMMANDS, FILES, JOBS, STATE, TAKES, TRANSFORMS, UPLOAD, command_subject, last_token,
+                       skeleton_subject)
 
 log = logging.getLogger("kinetre.network")
 
 BEAT = 0.5  # s between the scene's state messages
 LOST_AFTER = 1.5  # s of silence before a gateway calls the scene lost
 CHUNK = 512 * 1024  # bytes per request/reply message (NATS's default cap is 1 MB)
-FORWARD = ("possess", "release", "subset", "place", "fit", "player")  # commands the scene applies
-FILES, UPLOAD, JOBS, TAKES = "kinetre.files", "kinetre.upload", "kinetre.jobs", "kinetre.takes"
+RECORDER = "studio"  # the command subject's client for "record": recording belongs to no page
 
 
-def _command(client: str) -> str:
-    return f"kinetre.command.{client}"
-
-
-def _chunked(data: bytes, index: int) -> bytes:
+def chunked(data: bytes, index: int) -> bytes:
+    """Chunk `index` of `data`, after a line saying how many chunks there are."""
     count = max(1, -(-len(data) // CHUNK))
     if not 0 <= index < count:
         raise KinetreError(f"chunk {index} of {count}")
     return json.dumps({"chunks": count}).encode() + b"\n" + data[index * CHUNK:(index + 1) * CHUNK]
 
 
-def _answer(reply: bytes) -> bytes:
+def answer(reply: bytes) -> bytes:
     """The body of a reply; an error reply (leading NUL, see NatsChannels.serve) raises KinetreError."""
     if reply[:1] == b"\x00":
         raise KinetreError(reply[1:].decode(errors="replace"))
@@ -59,7 +61,7 @@ async def fetch(bus: NatsChannels, what: dict, timeout: float = 10.0) -> bytes:
     """A file from the scene (mesh payload or take file), reassembled from its chunks."""
     parts, count, index = [], 1, 0
     while index < count:
-        reply = _answer(await bus.request(FILES, json.dumps({**what, "chunk": index}).encode(), timeout))
+        reply = answer(await bus.request(FILES, json.dumps({**what, "chunk": index}).encode(), timeout))
         head, _, body = reply.partition(b"\n")
         count = json.loads(head)["chunks"]
         parts.append(body)
@@ -77,7 +79,6 @@ class SceneMirror:
         self.block: bytes | None = None
         self.heard = 0.0  # monotonic time of the last state
         self.lost = True  # until the scene is first heard
-        self.users: dict = {}  # Studio.start_sample looks here; the sample motion runs in the scene
 
     @property
     def mesh_id(self) -> int:
@@ -93,12 +94,6 @@ class SceneMirror:
 
     def transforms_block(self) -> bytes | None:
         return self.block
-
-    def forget(self, client: str) -> None:
-        self.hub.publish(Frame(_command(client), 0, now_ms(), b'{"type": "bye"}'))
-
-    def start_recording(self) -> None:
-        self.hub.publish(Frame(_command("studio"), 0, now_ms(), b'{"type": "record"}'))
 
     async def run(self) -> None:
         """Follow the scene's state and transforms; announce "scene lost" to this gateway's pages."""
@@ -138,43 +133,60 @@ class SceneMirror:
                 self.hub.deliver_local(Frame(STATE, 0, now_ms(), json.dumps(self.state()).encode()))
 
 
-class GatewayStudio(Studio):
-    """A studio whose scene runs elsewhere: pages' commands, uploads and takes go to it over NATS."""
+class GatewayScene:
+    """The scene host of a studio whose scene runs elsewhere: pages' commands, uploads and takes go to it over
+    NATS, and what pages see of it comes from the `SceneMirror`."""
 
-    async def handle(self, client: str, text: str | bytes) -> None:
-        try:
-            msg = parse_message(text)
-        except ProtocolError:
-            msg = None  # the base class answers the error
-        if msg is not None and msg["type"] in FORWARD:
-            raw = text.encode() if isinstance(text, str) else text
-            self.hub.publish(Frame(_command(client), 0, now_ms(), raw))
-            return
-        await super().handle(client, text, msg)  # parsed once: skeleton frames are most of the traffic
+    def __init__(self, hub: NatsChannels):
+        self.hub = hub
+        self.mirror = SceneMirror(hub)
+        self.jobs = Jobs()
+        self.takes = Takes()
+        self.tasks: list[asyncio.Task] = []
+        self._mesh: tuple[int, bytes] | None = None  # the last mesh payload fetched, by id
+
+    @property
+    def mesh_id(self) -> int:
+        return self.mirror.mesh_id
+
+    def state(self) -> dict:
+        return self.mirror.state()
+
+    def transforms_block(self) -> bytes | None:
+        return self.mirror.block
+
+    async def command(self, client: str, msg: dict, raw: bytes) -> None:
+        self.hub.publish(Frame(command_subject(client), 0, now_ms(), raw))
+
+    def forget(self, client: str) -> None:
+        self.hub.publish(Frame(command_subject(client), 0, now_ms(), b'{"type": "bye"}'))
+
+    def set_joint_map(self, joint_map) -> dict | None:
+        raise KinetreError("this studio relays to a remote scene: a joint map is set on the scene's own "
+                           "studio, not through a gateway")
 
     async def mesh_json(self, mesh_id: int) -> bytes | None:
-        if mesh_id != self.scene.mesh_id:
+        if mesh_id != self.mesh_id:
             return None
-        cache = getattr(self, "_mesh_cache", None)
-        if cache is None or cache[0] != mesh_id:
-            self._mesh_cache = cache = (mesh_id, await fetch(self.hub, {"mesh": mesh_id}))
-        return cache[1]
+        if self._mesh is None or self._mesh[0] != mesh_id:
+            self._mesh = (mesh_id, await fetch(self.hub, {"mesh": mesh_id}))
+        return self._mesh[1]
+
+    def start_recording(self) -> None:
+        self.hub.publish(Frame(command_subject(RECORDER), 0, now_ms(), b'{"type": "record"}'))
 
     async def stop_recording(self) -> dict:
-        result = json.loads(_answer(await self.hub.request(TAKES, b"stop", timeout=120)))
-        folder = self.takes_dir / str(result["take"])
-        folder.mkdir(parents=True, exist_ok=True)
+        result = json.loads(answer(await self.hub.request(TAKES, b"stop", timeout=120)))
+        folder = self.takes.folder(result["take"])
         for href in result["files"].values():
             name = href.rsplit("/", 1)[-1]
             (folder / name).write_bytes(await fetch(self.hub, {"take": result["take"], "name": name}, 60))
         return result
 
-    def start_job(self, name: str, data: bytes, loop: asyncio.AbstractEventLoop,
-                  scan_options: dict | None = None) -> Job:
+    def start_job(self, name: str, data: bytes, scan_options: dict | None = None) -> Job:
         """Send the upload to the scene in chunks; the local job follows the scene's job."""
-        job = Job(next(self._ids), name)
-        self.jobs[job.id] = job
-        loop.create_task(self._upload(job, data, scan_options or {}))
+        job = self.jobs.new(name)
+        self.tasks.append(asyncio.get_running_loop().create_task(self._upload(job, data, scan_options or {})))
         return job
 
     async def _upload(self, job: Job, data: bytes, scan_options: dict) -> None:
@@ -185,69 +197,73 @@ class GatewayStudio(Studio):
             for index in range(count):
                 job.stage, job.fraction = "sending to the scene", 0.05 * index / count
                 head = {"upload": upload, "name": job.name, "part": index, "parts": count, "scan": scan_options}
-                reply = _answer(await self.hub.request(
+                reply = answer(await self.hub.request(
                     UPLOAD, json.dumps(head).encode() + b"\n" + data[index * CHUNK:(index + 1) * CHUNK], 30))
                 remote = json.loads(reply).get("job")
             while True:
-                status = json.loads(_answer(await self.hub.request(JOBS, json.dumps({"job": remote}).encode())))
+                status = json.loads(answer(await self.hub.request(JOBS, json.dumps({"job": remote}).encode())))
                 job.stage, job.fraction, job.error = status["stage"], status["fraction"], status["error"]
                 if status["done"]:
                     job.done = True
                     return
                 await asyncio.sleep(0.25)
         except KinetreError as exc:
-            job.error, job.stage, job.done = f"{job.name}: {exc}", "failed", True
+            job.failed(f"{job.name}: {exc}")
+
+    async def start(self) -> None:
+        self.tasks.append(asyncio.get_running_loop().create_task(self.mirror.run()))
+
+    async def close(self) -> None:
+        for task in self.tasks:
+            task.cancel()
+        self.takes.close()
 
 
 # --- the scene side ------------------------------------------------------------------------------------
 async def serve_scene(mesh_path: str | None, url: str, room: str = "main", token: str | None = None,
-                      nodes: int = 128, sample_motion: bool = False, started=None, nkey: str | None = None) -> None:
-    """`kinetre scene`: run until cancelled. `started(studio)` is called once it serves."""
+                      nodes: int = NODES, sample_motion: bool = False, started=None, nkey: str | None = None) -> None:
+    """`kinetre scene`: run until cancelled. `started(host)` (the LocalScene) is called once it serves."""
     await probe_nats(url, room, token, nkey)  # a refusal is reported before the mesh is loaded
     path = mesh_path or str(data_path("spot.obj"))
     mesh, graph = await asyncio.to_thread(prepare_mesh, path, nodes)
-    worker = SolveWorker()
-    await worker.start()
     # connected only once the scene exists: nobody may hear of it before it subscribes (see below)
     bus = NatsChannels(room)
-    studio = Studio(bus, Scene(bus, mesh, graph, Path(path).name, solver=worker), nodes=nodes)
+    scene = Scene(bus, mesh, graph, Path(path).name, solver=SolveWorker())
+    host = LocalScene(bus, scene, nodes=nodes, settle=0.1)  # the sample's frames make a round trip
     await bus.start(url, token, name="kinetre-scene", nkey=nkey)
     if sample_motion and mesh_path is None:
-        studio.player = sample_player(bus)
-    scene = studio.scene
+        host.player = sample_player(bus)
     uploads: dict[str, list[bytes]] = {}
 
     async def command(frame: Frame) -> None:
-        client = frame.subject.rsplit(".", 1)[-1]
-        studio.stats.setdefault(client, ClientStats())
+        client = last_token(frame.subject)
         try:
-            kind = parse_message(frame.data).get("type")
-        except ProtocolError:
-            kind = None
-        if kind == "bye":
-            studio.stats.pop(client, None)
-            scene.forget(client)
-        elif kind == "record":
-            scene.start_recording()
+            msg = parse_message(frame.data)
+        except ProtocolError as exc:
+            answer_error(bus, client, exc)
+            return
+        if msg["type"] == "bye":
+            host.forget(client)
+        elif msg["type"] == "record":
+            host.start_recording()
         else:
-            await studio.handle(client, frame.data)
+            await apply(host, bus, client, msg, frame.data)
 
     async def files(data: bytes) -> bytes:
         what = json.loads(data)
         if "mesh" in what:
-            payload = await studio.mesh_json(int(what["mesh"]))
+            payload = await host.mesh_json(int(what["mesh"]))
             if payload is None:
                 raise KinetreError(f"mesh {what['mesh']} is not loaded")
         else:
-            take = studio.takes_dir / str(int(what["take"]))
-            file = take / Path(str(what["name"])).name
-            if not file.is_file():
+            file = host.takes.file(int(what["take"]), str(what["name"]))
+            if file is None:
                 raise KinetreError(f"no file {what['name']} in take {what['take']}")
             payload = file.read_bytes()
-        return _chunked(payload, int(what["chunk"]))
+        return chunked(payload, int(what["chunk"]))
 
     async def takes(data: bytes) -> bytes:
-        return json.dumps(await studio.stop_recording()).encode()
+        return json.dumps(await host.stop_recording()).encode()
 
     async def upload(data: bytes) -> bytes:
         head, _, body = data.partition(b"\n")
@@ -259,16 +275,14 @@ async def serve_scene(mesh_path: str | None, url: str, room: str = "main", token
             raise KinetreError(f"over the {MAX_UPLOAD >> 20} MB limit")
         if head["part"] + 1 < head["parts"]:
             return b"{}"
-        job = studio.start_job(head["name"], b"".join(uploads.pop(head["upload"])), asyncio.get_running_loop(),
-                               head.get("scan") or None)
+        job = host.start_job(head["name"], b"".join(uploads.pop(head["upload"])), head.get("scan") or None)
         return json.dumps({"job": job.id}).encode()
 
     async def jobs(data: bytes) -> bytes:
-        job = studio.jobs.get(json.loads(data)["job"])
+        job = host.jobs.get(json.loads(data)["job"])
         if job is None:
             raise KinetreError("no such job")
-        return json.dumps({"stage": job.stage, "fraction": job.fraction, "error": job.error,
-                           "done": job.done}).encode()
+        return json.dumps(job.status()).encode()
 
     async def beat() -> None:
         while True:
@@ -277,35 +291,30 @@ async def serve_scene(mesh_path: str | None, url: str, room: str = "main", token
             if scene.rig is None:  # idle: gateways that joined late still get the pose
                 bus.publish(Frame(TRANSFORMS, scene.seq, now_ms(), scene.transforms_block()))
 
-    await bus.listen("kinetre.command.*", command)
+    await bus.listen(COMMANDS, command)
     for subject, handler in ((FILES, files), (TAKES, takes), (UPLOAD, upload), (JOBS, jobs)):
         await bus.serve(subject, handler)
-    loop = asyncio.get_running_loop()
-    tasks = [loop.create_task(scene.run()), loop.create_task(beat())]
-    if studio.player is not None:
-        tasks.append(loop.create_task(studio.player.run()))
-        await asyncio.sleep(0.1)
-        await studio.start_sample()
+    await host.start()
+    heartbeat = asyncio.get_running_loop().create_task(beat())
     await asyncio.sleep(0.05)  # the scene's task subscribes to the skeletons when it first runs
     await bus.ready()  # …and the server has it before anyone hears that the scene is up
     scene.publish_state()
     freeze_heap()
     if started is not None:
-        started(studio)
+        started(host)
     try:
-        await asyncio.gather(*tasks)
+        await asyncio.gather(heartbeat, *host.tasks)
     finally:
-        for task in tasks:
-            task.cancel()
-        worker.close()
+        heartbeat.cancel()
+        await host.close()
         await bus.close()
 
 
-def run_scene(mesh_path: str | None, url: str, room: str = "main", token: str | None = None, nodes: int = 128,
+def run_scene(mesh_path: str | None, url: str, room: str = "main", token: str | None = None, nodes: int = NODES,
               sample_motion: bool = False, nkey: str | None = None) -> None:
     """What `kinetre scene` runs: serve until interrupted. Raises KinetreError (NetworkError) on bad input."""
-    def started(studio) -> None:
-        print(f"Kinetre scene: {studio.scene.name} ({studio.scene.graph.node_count} nodes) in room {room!r} "
+    def started(host: LocalScene) -> None:
+        print(f"Kinetre scene: {host.scene.name} ({host.scene.graph.node_count} nodes) in room {room!r} "
               f"on {url} (Ctrl+C to stop)", flush=True)
     main = serve_scene(mesh_path, url, room, token, nodes, sample_motion, started, nkey)
     try:  # uvloop, as uvicorn runs the studio (uvicorn[standard] installs it): each message's hops are cheaper

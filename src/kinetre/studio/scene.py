@@ -1,8 +1,8 @@
-"""The server-side scene (`003_…` §2's render component, minus the rendering): mesh, graph, rigs, solver.
+"""The server-side scene: mesh, graph, rigs and solver (the render component, minus the rendering).
 
-It subscribes to every skeleton subject ("kinetre.skeleton.*"), keeps each user's newest frame and, while
-anyone possesses the mesh, solves the graph pose from all possessing users at once (their constraints add
-up, SPEC §3.2) and publishes the node matrices on "kinetre.transforms". Frames that arrive while a solve
+It subscribes to every skeleton subject (SKELETONS), keeps each user's newest frame and, while anyone
+possesses the mesh, solves the graph pose from all possessing users at once (their constraints add up in
+one energy) and publishes the node matrices on TRANSFORMS. Frames that arrive while a solve
 runs are merged latest-wins, so a slow solve lowers the frame rate instead of building a queue.
 """
 from __future__ import annotations
@@ -24,35 +24,19 @@ from ..graph.graph import DeformationGraph
 from ..mesh.mesh import Mesh
 from ..skeleton.models import Skeleton
 from ..skeleton.subsets import subset_mask
-from .channels import Channels, Frame
+from ..wire.transforms import pack_transforms
+from .channels import Channels, Frame, now_ms
 from .placement import Placement
-from .protocol import ProtocolError, pack_transforms, parse_message, parse_skeleton
+from .protocol import ProtocolError, parse_message, parse_skeleton
 from .solve_worker import InlineSolver, SolverLost
+from .subjects import SKELETONS, STATE, TRANSFORMS, last_token
 from .takelog import TakeLog, read_take_log
 
 log = logging.getLogger("kinetre.studio")
 
-SKELETON_PREFIX = "kinetre.skeleton."
-SKELETONS = SKELETON_PREFIX + "*"
-TRANSFORMS = "kinetre.transforms"
-STATE = "kinetre.state"
 GATHER_S = 0.010  # longest wait for another possessing user's frame that is due (see Scene._gather)
 GATHER_SLACK_S = 0.005  # how late a user's frame may be (arrival jitter) and still be waited for
 LATE_S = 0.015  # a frame this long in the scene yields after its solve's next step (see Scene.solve_once)
-
-
-def skeleton_subject(client: str) -> str:
-    """The subject a capture client's (or a player's) skeleton frames go on: one per user, under SKELETONS."""
-    return SKELETON_PREFIX + client
-
-
-def client_subject(client: str) -> str:
-    """The subject of replies meant for one client only (errors, acknowledgements)."""
-    return f"kinetre.client.{client}"
-
-
-def now_ms() -> float:
-    return time.time() * 1000.0
 
 
 @dataclass
@@ -200,7 +184,7 @@ class Scene:
 
     def receive(self, frame: Frame) -> None:
         """A skeleton frame from the hub (already validated by the server that published it)."""
-        client = frame.subject.rsplit(".", 1)[-1]
+        client = last_token(frame.subject)
         user = self.user(client)
         skeleton = None
         if frame.value is not None:
@@ -233,7 +217,7 @@ class Scene:
             self.solver.newer_frame()  # a running solve yields to this frame (solve_worker.yielding)
 
     async def possess(self, client: str, subset=None) -> None:
-        """Bind the user's current pose (SPEC §3.2); raises AttachError when nothing is near the mesh."""
+        """Bind the user's current pose (possession); raises AttachError when nothing is near the mesh."""
         user = self.user(client)
         if user.latest is None or not user.latest.tracked.any():
             raise AttachError("no tracked skeleton from this client yet: nothing to possess with")

@@ -1,4 +1,4 @@
-"""The rig lives in its own process, so a long solve never holds the server's interpreter (issue 12).
+"""The rig lives in its own process, so a long solve never holds the server's interpreter.
 
 The scene sends "attach" once per possession and then the newest frames, one solve in flight at a
 time: frames that arrive meanwhile are merged latest-wins by the scene, so a slow solve lowers the
@@ -37,6 +37,9 @@ class InlineSolver:
         self.cpu_ms = 0.0  # CPU time of the last solve
         self.stopped = False  # the last solve yielded to a newer frame (its pose is not converged)
         self._newer = np.zeros(1, np.uint8)  # set: a frame newer than the one being solved has arrived
+
+    async def start(self) -> None:
+        """Nothing to spawn: the solve runs in this process (`SolveWorker.start` spawns its process)."""
 
     async def attach(self, graph, skeletons, settings: SolverSettings = SolverSettings()) -> list[np.ndarray]:
         self.rig = await asyncio.to_thread(attach, graph, skeletons, settings=settings)

@@ -1,4 +1,4 @@
-"""Offline voice commands ("possess", "release the left arm", "upper body") with pocketsphinx (SPEC §3.3).
+"""Offline voice commands ("possess", "release the left arm", "upper body") with pocketsphinx.
 
 The page sends one utterance of microphone audio; `Recogniser.recognise` decodes it against a small JSGF
 grammar built from the joint subset names and returns a `Command`, or None for silence, noise and speech
@@ -11,7 +11,7 @@ competes with the commands, so "what time is it" is absorbed by the loop instead
 the nearest command. Measured on festival speech
 (benchmarks/bench_voice.py): 72/72 commands, 0/20 out-of-grammar sentences accepted; without the loop
 14 of those 20 come back as commands. The price is noise robustness (white noise at 20 dB SNR: 57/64
-right, 60/64 without the loop) and ~4x the decode time (~95 ms CPU per utterance; 10-25 ms without the loop, SPEC §3.3).
+right, 60/64 without the loop) and ~4x the decode time (~95 ms CPU per utterance; 10-25 ms without the loop).
 
     >>> rec = Recogniser()                                              # doctest: +SKIP
     >>> rec.recognise(open("possess.wav", "rb").read())                 # doctest: +SKIP

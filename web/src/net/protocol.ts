@@ -1,4 +1,4 @@
-// The studio wire format (mirrors src/kinetre/studio/protocol.py): JSON messages and binary transform blocks.
+// The studio wire format: JSON messages (src/kinetre/studio/protocol.py) and binary transform blocks (src/kinetre/wire/transforms.py).
 
 export type Vec3 = [number, number, number];
 

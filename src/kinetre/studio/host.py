@@ -1,0 +1,200 @@
+"""Where the scene lives, as the studio's server sees it.
+
+The server's routes and viewer connections talk to a `SceneHost`: the scene's state and newest transforms
+for pages that connect, the commands people give it, its meshes, uploads and takes. `LocalScene` hosts a
+`Scene` in this process (the studio on one machine, and the `kinetre scene` process); `remote.GatewayScene`
+mirrors one that runs elsewhere and reaches it over NATS. Both answer a bad command on the client's reply
+subject, never with an exception out of the connection.
+"""
+from __future__ import annotations
+
+import asyncio
+import json
+from typing import Protocol
+
+from ..errors import KinetreError
+from .channels import Channels, Frame, now_ms
+from .jobs import Job, Jobs, prepare_upload
+from .meshes import NODES, mesh_payload
+from .player import SAMPLE_CLIENT, MotionPlayer
+from .protocol import ProtocolError
+from .recording import Takes, record_take
+from .scene import Scene, check_subset
+from .subjects import client_subject
+
+SCENE_COMMANDS = ("possess", "release", "subset", "place", "fit", "player")  # what the scene itself applies
+ANSWERED = (ProtocolError, KinetreError, TypeError, ValueError)  # bad input: told to the client, never fatal
+
+
+class SceneHost(Protocol):
+    """What the studio's server needs from the scene, wherever it runs."""
+
+    jobs: Jobs
+    takes: Takes
+
+    @property
+    def mesh_id(self) -> int: ...
+
+    def state(self) -> dict: ...
+
+    def transforms_block(self) -> bytes | None:
+        """The current pose for a page that connects (None while nothing is known of it yet)."""
+
+    async def command(self, client: str, msg: dict, raw: bytes) -> None:
+        """Apply one of SCENE_COMMANDS (`msg`, parsed from `raw`); raises one of ANSWERED on bad input."""
+
+    def forget(self, client: str) -> None: ...
+
+    async def mesh_json(self, mesh_id: int) -> bytes | None:
+        """The mesh payload (JSON bytes) if `mesh_id` is the loaded mesh."""
+
+    def start_job(self, name: str, data: bytes, scan_options: dict | None = None) -> Job: ...
+
+    def start_recording(self) -> None: ...
+
+    async def stop_recording(self) -> dict:
+        """End the take and export it into `takes`: {"take", "frames", "fps", "files"}; KinetreError if empty."""
+
+    def set_joint_map(self, joint_map) -> dict | None:
+        """Use `joint_map` (a JointMap, or None to clear) for the next possessions; the state's joint_map."""
+
+    async def start(self) -> None:
+        """Start the host's tasks in the running event loop."""
+
+    async def close(self) -> None: ...
+
+
+def reply(hub: Channels, client: str, message: dict) -> None:
+    """A message for one client only (its page gets it on its connection)."""
+    hub.publish(Frame(client_subject(client), 0, now_ms(), json.dumps(message).encode()))
+
+
+def answer_error(hub: Channels, client: str, exc: Exception) -> None:
+    message = f"bad message: {exc}" if isinstance(exc, ProtocolError) else str(exc)
+    reply(hub, client, {"type": "error", "message": message})
+
+
+async def apply(host: SceneHost, hub: Channels, client: str, msg: dict, raw: bytes) -> None:
+    """Give the host one command from `client`; a bad one is answered to the client."""
+    try:
+        if msg["type"] not in SCENE_COMMANDS:
+            raise ProtocolError(f"unknown message type {msg['type']!r}")
+        await host.command(client, msg, raw)
+    except ANSWERED as exc:
+        answer_error(hub, client, exc)
+
+
+class LocalScene:
+    """A `Scene` in this process, with the sample motion, upload jobs and takes around it."""
+
+    def __init__(self, hub: Channels, scene: Scene, player: MotionPlayer | None = None, nodes: int = NODES,
+                 settle: float = 0.0):
+        self.hub, self.scene, self.player, self.nodes = hub, scene, player, nodes
+        self.settle = settle  # s for the bus to carry the sample's subscription before it plays
+        self.jobs = Jobs()
+        self.takes = Takes()
+        self.tasks: list[asyncio.Task] = []
+
+    # --- what viewers see ------------------------------------------------------------------------------
+    @property
+    def mesh_id(self) -> int:
+        return self.scene.mesh_id
+
+    def state(self) -> dict:
+        return self.scene.state()
+
+    def transforms_block(self) -> bytes:
+        return self.scene.transforms_block()
+
+    async def mesh_json(self, mesh_id: int) -> bytes | None:
+        scene = self.scene
+        if mesh_id != scene.mesh_id:
+            return None
+        return json.dumps(mesh_payload(scene.mesh, scene.graph, scene.mesh_id, scene.name)).encode()
+
+    # --- what people do --------------------------------------------------------------------------------
+    async def command(self, client: str, msg: dict, raw: bytes) -> None:
+        kind, scene = msg["type"], self.scene
+        if kind == "possess":
+            if self.player is not None and client != SAMPLE_CLIENT:
+                await self.stop_sample()  # a live user takes over from the sample motion
+            await scene.possess(client, check_subset(msg.get("subset")))
+        elif kind == "release":
+            await scene.release(client)
+        elif kind == "subset":
+            await scene.set_subset(client, check_subset(msg.get("subset")))
+        elif kind == "place":
+            pos = msg.get("position", [0, 0, 0])
+            if not isinstance(pos, list):
+                raise ProtocolError("position must be a list of 3 numbers")
+            scene.place(float(msg.get("scale", 1.0)), pos, float(msg.get("yaw", 0.0)))
+        elif kind == "fit":
+            scene.fit(client)
+        elif kind == "player":
+            await (self.start_sample() if msg.get("on") else self.stop_sample())
+        else:
+            raise ProtocolError(f"unknown message type {kind!r}")
+
+    def forget(self, client: str) -> None:
+        self.scene.forget(client)
+
+    def set_joint_map(self, joint_map) -> dict | None:
+        self.scene.joint_map = joint_map
+        self.scene.publish_state()
+        return self.scene.state()["joint_map"]
+
+    # --- the sample motion -----------------------------------------------------------------------------
+    async def start_sample(self) -> None:
+        if self.player is None:
+            return
+        self.player.playing = True
+        self.player.publish(0, now_ms())
+        await asyncio.sleep(0.05)  # let the scene receive the first frame
+        if not any(u.bind is not None for c, u in self.scene.users.items() if c != SAMPLE_CLIENT):
+            self.scene.fit(SAMPLE_CLIENT)
+            try:
+                await self.scene.possess(SAMPLE_CLIENT)
+            except KinetreError:
+                pass  # a mesh the walk cannot reach just stands still
+
+    async def stop_sample(self) -> None:
+        if self.player is not None and self.player.playing:
+            self.player.playing = False
+            await self.scene.release(SAMPLE_CLIENT)
+
+    # --- mesh uploads ----------------------------------------------------------------------------------
+    def start_job(self, name: str, data: bytes, scan_options: dict | None = None) -> Job:
+        """Prepare an uploaded mesh in a worker thread; it replaces the scene's mesh when ready."""
+        job = self.jobs.new(name)
+
+        def ready(mesh, graph, mesh_name: str) -> None:
+            if self.player is not None:
+                self.player.playing = False
+            self.scene.set_mesh(mesh, graph, mesh_name)
+
+        prepare_upload(job, data, self.nodes, asyncio.get_running_loop(), ready, scan_options)
+        return job
+
+    # --- takes -----------------------------------------------------------------------------------------
+    def start_recording(self) -> None:
+        self.scene.start_recording()
+
+    async def stop_recording(self) -> dict:
+        return await record_take(self.scene, self.takes)
+
+    # --- lifetime --------------------------------------------------------------------------------------
+    async def start(self) -> None:
+        """Start the solver, the scene's loop and the sample motion (which possesses the mesh)."""
+        loop = asyncio.get_running_loop()
+        await self.scene.solver.start()
+        self.tasks.append(loop.create_task(self.scene.run()))
+        if self.player is not None:
+            self.tasks.append(loop.create_task(self.player.run()))
+            await asyncio.sleep(self.settle)
+            await self.start_sample()
+
+    async def close(self) -> None:
+        for task in self.tasks:
+            task.cancel()
+        self.scene.solver.close()
+        self.takes.close()

@@ -1,0 +1,77 @@
+"""Takes: the frames a scene solved while recording, exported as files a person can take away.
+
+A take is written as GLB (the mesh animated), node transforms (the page replays its physics from them),
+and, when a user drove it, BVH and the skeleton stream of its first user. Each take gets a folder of its
+own under the studio's take directory, served as /api/takes/<id>/<file>.
+"""
+from __future__ import annotations
+
+import asyncio
+import itertools
+import shutil
+import tempfile
+from pathlib import Path
+
+from ..errors import KinetreError
+from .scene import Scene, resample
+
+TAKE_FPS = 30.0
+
+
+class Takes:
+    """The folders of one studio's takes, by id (removed with `close`)."""
+
+    def __init__(self):
+        self.dir = Path(tempfile.mkdtemp(prefix="kinetre-takes-"))
+        self._ids = itertools.count(1)
+
+    def new(self) -> tuple[int, Path]:
+        take_id = next(self._ids)
+        return take_id, self.folder(take_id)
+
+    def folder(self, take_id: int) -> Path:
+        folder = self.dir / str(int(take_id))
+        folder.mkdir(parents=True, exist_ok=True)
+        return folder
+
+    def file(self, take_id: int, name: str) -> Path | None:
+        """A take's file by its name (no path parts), or None."""
+        path = self.dir / str(int(take_id)) / Path(name).name
+        return path if path.is_file() else None
+
+    def close(self) -> None:
+        shutil.rmtree(self.dir, ignore_errors=True)
+
+
+async def record_take(scene: Scene, takes: Takes, fps: float = TAKE_FPS) -> dict:
+    """Stop the scene's recording and export the take; {"take", "frames", "fps", "files": {kind: url}}."""
+    take = resample(scene.stop_recording(), fps)
+    if not take:
+        raise KinetreError("the take is empty: possess the mesh (or play the sample) while recording")
+    take_id, folder = takes.new()
+    files = await asyncio.to_thread(export_take, folder, scene.mesh, scene.graph, take, fps)
+    return {"take": take_id, "frames": len(take), "fps": fps,
+            "files": {k: f"/api/takes/{take_id}/{v}" for k, v in files.items()}}
+
+
+def export_take(folder: Path, mesh, graph, take, fps: float) -> dict[str, str]:
+    """Write the take as GLB (the mesh animated), node transforms (physics replay), BVH and the skeleton
+    stream of its first user."""
+    from ..export.gltf import write_gltf
+    files = {}
+    write_gltf(folder / "take.glb", mesh, graph, [f.pose for f in take], fps)
+    files["glb"] = "take.glb"
+    from ..physics.take import write_take_transforms  # the page replays the physics from these
+    write_take_transforms(folder / "take.transforms", graph, [f.pose for f in take], fps)
+    files["transforms"] = "take.transforms"
+    clients = [c for c in take[0].skeletons]
+    if clients:
+        frames = [f.skeletons.get(clients[0]) for f in take]
+        frames = [s for s in frames if s is not None]
+        from ..export.bvh import write_bvh
+        write_bvh(folder / "take.bvh", frames, fps)
+        files["bvh"] = "take.bvh"
+        from ..motion import stream
+        stream.write_stream(folder / "take.kinetre.jsonl", frames, fps)
+        files["stream"] = "take.kinetre.jsonl"
+    return files

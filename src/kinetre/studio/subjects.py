@@ -1,0 +1,56 @@
+"""The studio's subjects, named once: where each frame, command and reply travels.
+
+The data path, in subjects:
+
+    capture client ──SKELETONS──▶ scene ──TRANSFORMS, STATE──▶ viewers
+                    (skeleton_subject(c), one per user)        (client_subject(c): replies to one client)
+
+With the scene in its own process (remote.py), a gateway forwards each page's commands on
+`command_subject(c)` and asks the scene for files, uploads, upload jobs and takes on FILES, UPLOAD, JOBS
+and TAKES. Names follow NATS syntax (dot-separated tokens, `*` one token); a NATS bus maps them into one
+room on the wire by putting the room after the namespace (natsbus.py).
+"""
+from __future__ import annotations
+
+NAMESPACE = "kinetre."
+SKELETON_PREFIX = NAMESPACE + "skeleton."
+SKELETONS = SKELETON_PREFIX + "*"
+TRANSFORMS = NAMESPACE + "transforms"
+STATE = NAMESPACE + "state"
+CLIENT_PREFIX = NAMESPACE + "client."
+COMMAND_PREFIX = NAMESPACE + "command."
+COMMANDS = COMMAND_PREFIX + "*"
+FILES = NAMESPACE + "files"  # request: a chunk of a mesh payload or a take file
+UPLOAD = NAMESPACE + "upload"  # request: a chunk of an uploaded mesh
+JOBS = NAMESPACE + "jobs"  # request: an upload job's progress
+TAKES = NAMESPACE + "takes"  # request: stop recording and export the take
+
+# The second token says how a subject is delivered: live ones latest-wins (a slow reader gets the newest
+# frame), queued ones message by message (every reply must reach its page, every command its scene).
+LIVE_KINDS = ("skeleton", "transforms", "state")
+QUEUED_KINDS = ("client", "command")
+
+
+def skeleton_subject(client: str) -> str:
+    """The subject a capture client's (or a player's) skeleton frames go on: one per user, under SKELETONS."""
+    return SKELETON_PREFIX + client
+
+
+def client_subject(client: str) -> str:
+    """The subject of replies meant for one client only (errors, acknowledgements)."""
+    return CLIENT_PREFIX + client
+
+
+def command_subject(client: str) -> str:
+    """The subject of one client's commands to a scene in another process."""
+    return COMMAND_PREFIX + client
+
+
+def kind(subject: str) -> str:
+    """"kinetre.skeleton.c3" → "skeleton"."""
+    return subject.split(".")[1] if subject.count(".") else ""
+
+
+def last_token(subject: str) -> str:
+    """The client a per-client subject belongs to: "kinetre.skeleton.c3" → "c3"."""
+    return subject.rsplit(".", 1)[-1]

@@ -1,0 +1,1 @@
+"""Binary formats that travel between processes: the studio's sockets, NATS and take files share them."""
