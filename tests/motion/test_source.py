@@ -62,6 +62,41 @@ def test_resample():
     assert gap.tracked[:, 0].tolist() == [True] * 5 + [False] * 3 + [True] * 13
 
 
+def crowd_ramp(frames=11, fps=10.0) -> Take:
+    """Two people whose joints, hands and blendshapes all equal the frame index (person 7 offset by 100);
+    person 7's right hand and face are missing in frame 3."""
+    base = ramp(frames, fps)
+    i = np.arange(frames, dtype=float)
+    crowd = np.stack([base.positions, base.positions + 100.0], axis=1)
+    hands = np.broadcast_to(i[:, None, None, None, None], (frames, 2, 2, 21, 3)).copy()
+    hands[:, 1] += 100.0
+    hands[3, 1, 1] = np.nan
+    faces = np.broadcast_to(i[:, None, None] / 10.0, (frames, 2, 3)).copy()
+    faces[3, 1] = np.nan
+    return Take(base.model, base.positions, base.tracked, fps, "crowd", (2, 7), crowd,
+                np.ones((frames, 2, 20), bool), hands, faces, ("jawOpen", "eyeBlinkLeft", "mouthClose"))
+
+
+def test_resample_keeps_people_hands_and_faces():
+    t = crowd_ramp()
+    down = resample(t, 5.0)
+    assert down.people == (2, 7) and down.blendshape_names == t.blendshape_names and down.fps == 5.0
+    assert np.array_equal(down.crowd_positions, t.crowd_positions[::2], equal_nan=True)
+    assert np.array_equal(down.hands, t.hands[::2], equal_nan=True)
+    assert np.array_equal(down.blendshapes, t.blendshapes[::2], equal_nan=True)
+    up = resample(t, 25.0)  # frame k at original index 0.4 k
+    x = np.arange(26) * 0.4
+    np.testing.assert_allclose(up.crowd_positions[:, 1, 5, 2], x + 100.0, atol=1e-12)
+    np.testing.assert_allclose(up.hands[:, 0, 0, 20, 1], x, atol=1e-12)
+    np.testing.assert_allclose(up.blendshapes[:, 0, 2], x / 10.0, atol=1e-12)
+    # between frames 2..4 person 7's right hand and face are gone; their left hand is not
+    near3 = (x > 2.0) & (x < 4.0)
+    assert np.isnan(up.hands[near3, 1, 1]).all() and np.isfinite(up.hands[~near3, 1, 1]).all()
+    assert np.isnan(up.blendshapes[near3, 1]).all() and np.isfinite(up.blendshapes[~near3, 1]).all()
+    assert np.isfinite(up.hands[:, 1, 0]).all() and up.crowd_tracked.all()
+    assert np.array_equal(up.positions, resample(ramp(), 25.0).positions)
+
+
 def test_load_take_picks_the_reader(data_dir, tmp_path):
     assert load_take(data_dir / "bvh" / "mocapbank_test.bvh").model is kinetre.KINECT20
     with pytest.raises(BadMotionError, match="unknown motion format"):

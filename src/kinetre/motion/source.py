@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import math
 import os
+from dataclasses import replace
 
 import numpy as np
 
@@ -49,22 +50,33 @@ def load_take(path: str | os.PathLike, **options) -> Take:
 def resample(take: Take, fps: float) -> Take:
     """The take at another frame rate, positions interpolated linearly in time.
 
-    A joint is tracked in a new frame when it is tracked in both original frames around it. An integer
-    ratio down (120 -> 30 fps) just keeps every n-th frame, so those frames stay bit-exact.
+    A joint is tracked in a new frame when it is tracked in both original frames around it; everyone's
+    joints, hands and blendshapes are interpolated likewise (a hand or face seen in only one of the two
+    frames is not seen). An integer ratio down (120 -> 30 fps) just keeps every n-th frame, so those frames
+    stay bit-exact.
     """
     if not (math.isfinite(fps) and fps > 0):
         raise BadMotionError(f"{take.source or 'take'}: fps must be a positive number, got {fps!r}")
     ratio = take.fps / fps
     if round(ratio) >= 1 and abs(ratio - round(ratio)) < 1e-4 * ratio:
-        step = int(round(ratio))
-        return Take(take.model, take.positions[::step], take.tracked[::step], fps, take.source)
+        kept = take.slice(0, None, int(round(ratio)))
+        return replace(kept, fps=float(fps))
     n = int(math.floor(take.duration * fps + 1e-9)) + 1
     x = np.arange(n) * take.fps / fps  # position in original frames
     i0 = np.minimum(np.floor(x).astype(int), len(take) - 1)
     i1 = np.minimum(i0 + 1, len(take) - 1)
     a = x - i0
     exact = a < 1e-9  # on an original frame: its neighbour does not matter (nor its NaNs)
-    w = a[:, None, None]
-    pos = np.where(exact[:, None, None], take.positions[i0], (1 - w) * take.positions[i0] + w * take.positions[i1])
-    tracked = take.tracked[i0] & (take.tracked[i1] | exact[:, None])
-    return Take(take.model, pos, tracked, fps, take.source)
+
+    def lerp(values):
+        if values is None:
+            return None
+        shape = (n,) + (1,) * (values.ndim - 1)
+        w, on = a.reshape(shape), exact.reshape(shape)
+        return np.where(on, values[i0], (1 - w) * values[i0] + w * values[i1])
+
+    def both(flags):
+        return None if flags is None else flags[i0] & (flags[i1] | exact.reshape((n,) + (1,) * (flags.ndim - 1)))
+    return Take(take.model, lerp(take.positions), both(take.tracked), fps, take.source, take.people,
+                lerp(take.crowd_positions), both(take.crowd_tracked), lerp(take.hands), lerp(take.blendshapes),
+                take.blendshape_names)
