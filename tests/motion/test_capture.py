@@ -152,9 +152,10 @@ def test_no_person_and_not_a_video(tmp_path):
 def test_live_loop_calls_back_per_frame(data_dir):
     from kinetre.motion.capture import capture_camera
     got = []
-    n = capture_camera(str(data_dir / "video" / "pose_1.mp4"), lambda sk, t: got.append((sk, t)), max_frames=5)
+    n = capture_camera(str(data_dir / "video" / "pose_1.mp4"), lambda sk, t, people: got.append((sk, t)),
+                       max_frames=5)
     assert n == 5 and len(got) == 5
     assert all(t2 > t1 for (_, t1), (_, t2) in zip(got, got[1:]))
     assert all(sk.tracked.sum() >= 18 for sk, _ in got)
     with pytest.raises(BadMotionError, match="camera 99: cannot open"):
-        capture_camera(99, lambda sk, t: None, max_frames=1)
+        capture_camera(99, lambda sk, t, people: None, max_frames=1)

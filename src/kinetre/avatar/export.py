@@ -25,8 +25,12 @@ from .retarget import AvatarMotion, RetargetPlan
 from .skin import skin_avatar
 
 
-def write_avatar_gltf(path, avatar: Avatar, motion: AvatarMotion, fps: float, name: str = "take") -> None:
+def write_avatar_gltf(path, avatar: Avatar, motion: AvatarMotion, fps: float, name: str = "take",
+                      morph_weights: dict | None = None) -> None:
     """Write the avatar animated by `motion` as .glb (or a single-file .gltf with an embedded buffer).
+
+    `morph_weights` (mesh index -> (T, targets) weights in [0, 1], `ExpressionMap.weights`) adds a
+    morph-weight track to every node showing that mesh.
 
     Raises
     ------
@@ -68,6 +72,18 @@ def write_avatar_gltf(path, avatar: Avatar, motion: AvatarMotion, fps: float, na
             samplers.append(gl.AnimationSampler(input=time_acc, output=acc, interpolation="LINEAR"))
             channels.append(gl.AnimationChannel(sampler=len(samplers) - 1,
                                                 target=gl.AnimationChannelTarget(node=int(avatar.joints[j]), path=prop)))
+    for mesh, weights in (morph_weights or {}).items():
+        weights = np.asarray(weights, dtype=np.float32)
+        targets = len(doc.meshes[mesh].primitives[0].targets or [])
+        if weights.shape != (len(motion), targets) or not np.isfinite(weights).all():
+            raise ExportError(f"{path}: mesh {mesh} needs ({len(motion)}, {targets}) finite morph weights, "
+                              f"got {weights.shape}")
+        acc = append_accessor(doc, blob, weights.reshape(-1), gl.SCALAR, gl.FLOAT)
+        for node, nd in enumerate(doc.nodes):
+            if nd.mesh == mesh:
+                samplers.append(gl.AnimationSampler(input=time_acc, output=acc, interpolation="LINEAR"))
+                channels.append(gl.AnimationChannel(sampler=len(samplers) - 1,
+                                                    target=gl.AnimationChannelTarget(node=node, path="weights")))
     doc.animations = [gl.Animation(name=name, samplers=samplers, channels=channels)]
     save_gltf(path, doc, blob, "Kinetre (avatar retargeting, pygltflib)")
 

@@ -461,3 +461,104 @@ def _order(parents) -> np.ndarray:
         order.append(j)
         stack.extend(children[j][::-1])
     return np.array(order, dtype=np.int64)
+
+
+# ---- fingers ------------------------------------------------------------------------------------------
+
+def retarget_fingers(avatar: Avatar, plan: RetargetPlan, fingers, motion: AvatarMotion,
+                     hands: np.ndarray) -> AvatarMotion:
+    """The body's motion with the finger bones following tracked hands, Algorithm 1 per finger segment.
+
+    Each finger bone (joint c_i → c_{i+1} of a chain in `fingers`, a `kinetre.avatar.fingers.FingerMap`;
+    the last joint's bone points at its child node, and a tip joint without one is left alone) follows one
+    segment of MediaPipe's finger (landmarks MCP → PIP → DIP → tip, the thumb's CMC → MCP → IP → tip), the
+    first bone the first segment and the last the last: with s the segment's direction and q_parent the
+    parent's world rotation, q_world = minrot(q_parent d_i → s) · q_parent, as for the body. A bone whose
+    hand is not seen in a frame keeps its last local rotation (at first the bind pose). Joints below the
+    fingers are carried along.
+
+    hands : (T, 2, 21, 3) left and right hand landmarks in Kinetre's frame (NaN where not seen).
+    """
+    from ..skeleton.mediapipe import FINGERS
+    hands = np.asarray(hands, dtype=np.float64)
+    t_count = len(motion)
+    if hands.shape != (t_count, 2, 21, 3):
+        raise ValueError(f"hands must be ({t_count}, 2, 21, 3), got {hands.shape}")
+    p = plan.bind_positions
+    aims = {}                                        # joint -> (rest direction, landmark from, landmark to)
+    for (side, finger), chain in fingers.chains.items():
+        bones = []
+        for i, j in enumerate(chain):
+            end = p[chain[i + 1]] if i + 1 < len(chain) else _child_node_position(avatar, j)
+            if end is not None and np.linalg.norm(end - p[j]) > 1e-12:
+                bones.append((j, (end - p[j]) / np.linalg.norm(end - p[j])))
+        marks = FINGERS[finger]
+        for b, (j, d) in enumerate(bones):
+            k = int(round(b * (len(marks) - 2) / max(len(bones) - 1, 1)))
+            aims[j] = (d, side, marks[k], marks[k + 1])
+    if not aims:
+        return motion
+    src = hands @ plan.align.T
+    rot, world, local = motion.rotations.copy(), motion.world.copy(), motion.local.copy()
+    moved = np.zeros(len(plan.order), dtype=bool)
+    eye = np.eye(3)
+    for j in plan.order:
+        vp = plan.parents[j]
+        if j not in aims and not (vp >= 0 and moved[vp]):
+            continue
+        moved[j] = True
+        parent = np.broadcast_to(eye, (t_count, 3, 3)) if vp < 0 else rot[:, vp]
+        if j in aims:
+            d, side, a, b = aims[j]
+            s = src[:, side, b] - src[:, side, a]
+            ok = np.isfinite(s).all(axis=1) & (np.linalg.norm(np.nan_to_num(s), axis=1) > 1e-9)
+            w = _min_rotations(np.einsum("tij,j->ti", parent, d), np.nan_to_num(s)) @ parent
+            relative = _hold(np.swapaxes(parent, 1, 2) @ w, ok, eye)
+        else:         # carried along: what it had relative to its parent
+            relative = np.swapaxes(motion.rotations[:, vp], 1, 2) @ motion.rotations[:, j]
+        rot[:, j] = parent @ relative
+        world[:, j, :3, :3] = rot[:, j] @ plan.bind_linear[j]
+        if vp >= 0:
+            world[:, j, :3, 3] = world[:, vp, :3, 3] + np.einsum("tij,j->ti", rot[:, vp], p[j] - p[vp])
+    for j in range(len(plan.order)):
+        rp = plan.real_parents[j]
+        if moved[j] or (rp >= 0 and moved[rp]):   # a joint whose glTF parent moved gets a new local matrix too
+            above = np.broadcast_to(plan.fixed_parent[j], (t_count, 4, 4)) if rp < 0 else \
+                world[:, rp] @ plan.fixed_parent[j]
+            local[:, j] = np.linalg.solve(above, world[:, j])
+    return AvatarMotion(world, local, rot)
+
+
+def _child_node_position(avatar: Avatar, joint: int) -> np.ndarray | None:
+    """Bind-pose world position of the first child node of a joint's node (an end bone), if any."""
+    node = avatar.joints[joint]
+    children = np.flatnonzero(avatar.node_parents == node)
+    if not len(children):
+        return None
+    # rest_world is the bind pose for joints; a child node follows its joint rigidly
+    offset = np.linalg.solve(avatar.rest_world[node], avatar.rest_world[children[0]])
+    return (avatar.bind_world[joint] @ offset)[:3, 3]
+
+
+def _min_rotations(u: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """(T, 3, 3): per row the smallest rotation turning direction u onto v (Rodrigues); identity where v
+    is zero, half a turn about a perpendicular axis where they are opposite."""
+    u = u / np.maximum(np.linalg.norm(u, axis=1, keepdims=True), 1e-12)
+    nv = np.linalg.norm(v, axis=1, keepdims=True)
+    v = np.where(nv > 1e-12, v / np.maximum(nv, 1e-12), u)
+    axis = np.cross(u, v)
+    s2 = np.einsum("ti,ti->t", axis, axis)
+    c = np.einsum("ti,ti->t", u, v)
+    k = np.zeros((len(u), 3, 3))
+    k[:, 0, 1], k[:, 0, 2], k[:, 1, 2] = -axis[:, 2], axis[:, 1], -axis[:, 0]
+    k[:, 1, 0], k[:, 2, 0], k[:, 2, 1] = axis[:, 2], -axis[:, 1], axis[:, 0]
+    out = np.eye(3) + k + ((1.0 - c) / np.maximum(s2, 1e-24))[:, None, None] * (k @ k)
+    flip = (s2 <= 1e-24) & (c < 0)
+    if flip.any():
+        perp = np.cross(u[flip], [1.0, 0.0, 0.0])
+        weak = np.linalg.norm(perp, axis=1) < 1e-6
+        perp[weak] = np.cross(u[flip][weak], [0.0, 1.0, 0.0])
+        perp /= np.linalg.norm(perp, axis=1, keepdims=True)
+        out[flip] = 2.0 * np.einsum("ti,tj->tij", perp, perp) - np.eye(3)
+    out[(s2 <= 1e-24) & (c >= 0)] = np.eye(3)
+    return out

@@ -39,6 +39,34 @@ def register(sub) -> None:
     p.set_defaults(func=cmd_avatar)
 
 
+def hands_and_face(avatar, bonemap, plan, motion, take, say=lambda *a: None):
+    """The take's hands on the avatar's finger bones and its face blendshapes on the avatar's expressions:
+    (motion with the fingers, mesh index -> (T, targets) morph weights or None)."""
+    import numpy as np
+
+    from ..avatar.expressions import map_expressions
+    from ..avatar.fingers import map_fingers
+    from ..avatar.retarget import retarget_fingers
+    hands, faces, morphs = take.main_hands(), take.main_blendshapes(), None
+    if hands is not None:
+        fingers = map_fingers(avatar, bonemap)
+        if fingers:
+            motion = retarget_fingers(avatar, plan, fingers, motion, hands)
+            seen = np.isfinite(hands).all(axis=(2, 3)).any(axis=1).mean()
+            say(f"fingers: {len(fingers.chains)} finger chains follow the hands (seen in {seen:.0%} of frames)")
+        else:
+            say("fingers: the take has hands, the avatar no finger joints")
+    if faces is not None:
+        expressions = map_expressions(avatar, take.blendshape_names)
+        if expressions:
+            morphs = expressions.weights(faces)
+            say(f"face: blendshapes drive {sum(m.shape[1] for m in morphs.values())} morph targets "
+                f"({'VRM expressions' if expressions.how == 'vrm' else 'ARKit names'})")
+        else:
+            say("face: the take has blendshapes, the avatar no matching morph targets or VRM expressions")
+    return motion, morphs
+
+
 def cmd_avatar(args) -> int:
     from ..motion.source import resample
     from ..avatar.bonemap import describe, kinect_take, map_bones, map_path, write_map
@@ -78,6 +106,7 @@ def cmd_avatar(args) -> int:
         take = take.slice(0, max(1, args.max_frames))
     plan = plan_retarget(avatar, bonemap)
     motion = retarget(plan, take.positions, take.tracked)
+    motion, morphs = hands_and_face(avatar, bonemap, plan, motion, take, say)
     if args.vmc is not None:
         from ..vmc.send import VmcSender, parse_address, vmc_frames
         host, port = parse_address(args.vmc)
@@ -92,7 +121,7 @@ def cmd_avatar(args) -> int:
         return 0
     if out_ext in (".glb", ".gltf"):
         from ..avatar.export import write_avatar_gltf
-        write_avatar_gltf(args.output, avatar, motion, take.fps)
+        write_avatar_gltf(args.output, avatar, motion, take.fps, morph_weights=morphs)
     elif out_ext == ".bvh":
         from ..avatar.export import write_avatar_bvh
         write_avatar_bvh(args.output, avatar, plan, motion, take.fps)

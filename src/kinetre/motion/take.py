@@ -124,6 +124,38 @@ class Take:
                     None if self.hands is None else self.hands[:, one],
                     None if self.blendshapes is None else self.blendshapes[:, one], self.blendshape_names)
 
+    def main_person(self) -> np.ndarray:
+        """(T,) per frame the index in `people` of the person whose joints are the frame's own (the main
+        person), -1 where none is (no people, or nobody tracked)."""
+        out = np.full(len(self), -1, dtype=np.int64)
+        if not self.people:
+            return out
+        same = (self.crowd_tracked == self.tracked[:, None]).all(axis=2) & self.tracked.any(axis=1)[:, None]
+        main = np.where(self.tracked[:, None, :, None], self.positions[:, None], 0.0)
+        crowd = np.where(self.crowd_tracked[..., None], self.crowd_positions, 0.0)
+        same &= (main == crowd).all(axis=(2, 3))
+        hit = same.any(axis=1)
+        out[hit] = np.argmax(same[hit], axis=1)
+        return out
+
+    def main_hands(self) -> np.ndarray | None:
+        """(T, 2, 21, 3) the main person's hands (NaN where not seen), or None when the take has no hands."""
+        if self.hands is None:
+            return None
+        k = self.main_person()
+        out = np.full((len(self), 2, 21, 3), np.nan)
+        out[k >= 0] = self.hands[np.flatnonzero(k >= 0), k[k >= 0]]
+        return out
+
+    def main_blendshapes(self) -> np.ndarray | None:
+        """(T, B) the main person's blendshapes (NaN where not seen), or None when the take has no faces."""
+        if self.blendshapes is None:
+            return None
+        k = self.main_person()
+        out = np.full((len(self), len(self.blendshape_names)), np.nan)
+        out[k >= 0] = self.blendshapes[np.flatnonzero(k >= 0), k[k >= 0]]
+        return out
+
     def __len__(self) -> int:
         return int(self.positions.shape[0])
 

@@ -1,0 +1,128 @@
+"""Face blendshapes → an avatar's morph target weights: its VRM expressions, else its ARKit-named targets.
+
+MediaPipe's FaceLandmarker gives the 51 ARKit face-tracking weights (plus `_neutral`). An avatar takes them
+through, in order:
+
+1. VRM expressions (VRM 1.0 `VRMC_vrm.expressions`, VRM 0.x `VRM.blendShapeMaster.blendShapeGroups`): an
+   expression named like a blendshape ("perfect sync" avatars) takes that weight; the presets take the
+   blendshapes they stand for (aa ← jawOpen, ou ← mouthPucker, oh ← mouthFunnel, blinkLeft ← eyeBlinkLeft,
+   happy ← the mean of both mouthSmiles, sad ← mouthFrowns, angry ← browDowns, surprised ← browInnerUp);
+   each expression then moves its bound morph targets by its bind weight.
+2. Otherwise morph targets named after a blendshape (the glTF `extras.targetNames` three.js and Blender
+   write, on the mesh or its first primitive), matched ignoring case, punctuation and a prefix
+   ("jawOpen", "ARKit_JawOpen", "blendShape1.jawOpen").
+
+Everything is linear, so the map is a matrix per mesh: weights = clip(W · blendshapes, 0, 1).
+"""
+from __future__ import annotations
+
+import re
+from dataclasses import dataclass
+
+import numpy as np
+
+from .load import Avatar
+
+# VRM preset (lower case, VRM 0.x and 1.0 spellings) -> the blendshapes whose mean drives it
+PRESETS = {"a": ("jawOpen",), "aa": ("jawOpen",), "u": ("mouthPucker",), "ou": ("mouthPucker",),
+           "o": ("mouthFunnel",), "oh": ("mouthFunnel",), "blink_l": ("eyeBlinkLeft",),
+           "blinkleft": ("eyeBlinkLeft",), "blink_r": ("eyeBlinkRight",), "blinkright": ("eyeBlinkRight",),
+           "joy": ("mouthSmileLeft", "mouthSmileRight"), "happy": ("mouthSmileLeft", "mouthSmileRight"),
+           "sorrow": ("mouthFrownLeft", "mouthFrownRight"), "sad": ("mouthFrownLeft", "mouthFrownRight"),
+           "angry": ("browDownLeft", "browDownRight"), "surprised": ("browInnerUp",)}
+
+
+@dataclass(frozen=True, eq=False)
+class ExpressionMap:
+    """matrices[mesh index] = (targets, B) weights from blendshapes to that mesh's morph targets;
+    `names` the B blendshape names; `how` says which route was taken ("vrm" or "names")."""
+
+    names: tuple[str, ...]
+    matrices: dict
+    how: str = ""
+
+    def __bool__(self) -> bool:
+        return any(np.any(m) for m in self.matrices.values())
+
+    def weights(self, blendshapes: np.ndarray) -> dict:
+        """mesh index -> (T, targets) morph weights for (T, B) blendshapes; a frame without a face (NaN)
+        keeps the last frame's weights (zero before the first face)."""
+        b = np.asarray(blendshapes, dtype=np.float64)
+        seen = np.isfinite(b).all(axis=1)
+        last = np.maximum.accumulate(np.where(seen, np.arange(len(b)), -1))
+        held = np.where((last >= 0)[:, None], np.nan_to_num(b)[np.maximum(last, 0)], 0.0)
+        return {mesh: np.clip(held @ m.T, 0.0, 1.0) for mesh, m in self.matrices.items() if np.any(m)}
+
+
+def _key(name: str) -> str:
+    return re.sub(r"[^a-z0-9]", "", str(name).lower())
+
+
+def map_expressions(avatar: Avatar, names: tuple[str, ...]) -> ExpressionMap:
+    """How `names` (the take's blendshapes) drive the avatar's morph targets (empty when nothing matches)."""
+    doc = avatar.doc
+    counts = {m: len((mesh.primitives[0].targets or []) if mesh.primitives else [])
+              for m, mesh in enumerate(doc.meshes or [])}
+    counts = {m: n for m, n in counts.items() if n}
+    index = {_key(n): i for i, n in enumerate(names) if not n.startswith("_")}
+    groups = _vrm_expressions(doc)
+    if groups:
+        per_left_right = any(_key(g) in ("blinkl", "blinkleft") for g, _ in groups)
+        matrices = {m: np.zeros((n, len(names))) for m, n in counts.items()}
+        for group, binds in groups:
+            k = _key(group)
+            drive = np.zeros(len(names))
+            if k in index:
+                drive[index[k]] = 1.0
+            elif k in PRESETS or (k == "blink" and not per_left_right):
+                sources = PRESETS.get(k, ("eyeBlinkLeft", "eyeBlinkRight"))
+                used = [index[_key(s)] for s in sources if _key(s) in index]
+                for i in used:
+                    drive[i] += 1.0 / len(used)
+            for mesh, target, weight in binds:
+                if mesh in matrices and 0 <= target < counts[mesh]:
+                    matrices[mesh][target] += weight * drive
+        return ExpressionMap(tuple(names), matrices, "vrm")
+    matrices = {}
+    for m, n in counts.items():
+        targets = _target_names(doc.meshes[m])
+        w = np.zeros((n, len(names)))
+        for t, target in enumerate(targets[:n]):
+            k = _key(target)
+            hit = [i for key, i in index.items() if k == key or k.endswith(key)]
+            if hit:
+                w[t, max(hit, key=lambda i: len(_key(names[i])))] = 1.0  # the longest name: "mouthSmileLeft"
+        matrices[m] = w
+    return ExpressionMap(tuple(names), matrices, "names")
+
+
+def _target_names(mesh) -> list[str]:
+    for holder in (mesh, mesh.primitives[0] if mesh.primitives else None):
+        extras = getattr(holder, "extras", None)
+        if isinstance(extras, dict) and isinstance(extras.get("targetNames"), list):
+            return [str(n) for n in extras["targetNames"]]
+    return []
+
+
+def _vrm_expressions(doc) -> list[tuple[str, list[tuple[int, int, float]]]]:
+    """[(expression name, [(mesh, morph target, weight 0..1), ...]), ...] from VRM 1.0 or 0.x."""
+    ext = doc.extensions or {}
+    out = []
+    vrm1 = (ext.get("VRMC_vrm") or {}).get("expressions") if isinstance(ext.get("VRMC_vrm"), dict) else None
+    if isinstance(vrm1, dict):
+        for kind in ("preset", "custom"):
+            for name, expr in (vrm1.get(kind) or {}).items():
+                binds = []
+                for b in (expr or {}).get("morphTargetBinds") or []:
+                    node = b.get("node")
+                    if isinstance(node, int) and 0 <= node < len(doc.nodes) and doc.nodes[node].mesh is not None:
+                        binds.append((doc.nodes[node].mesh, int(b.get("index", -1)), float(b.get("weight", 1.0))))
+                out.append((name, binds))
+        return out
+    vrm0 = ext.get("VRM") if isinstance(ext.get("VRM"), dict) else None
+    for group in ((vrm0 or {}).get("blendShapeMaster") or {}).get("blendShapeGroups") or []:
+        name = group.get("presetName") if group.get("presetName") not in (None, "", "unknown") else group.get("name")
+        binds = [(int(b.get("mesh", -1)), int(b.get("index", -1)), float(b.get("weight", 100.0)) / 100.0)
+                 for b in group.get("binds") or []]
+        out.append((str(name or ""), binds))
+    return out
