@@ -58,6 +58,9 @@ def _key(name: str) -> str:
     return re.sub(r"[^a-z0-9]", "", str(name).lower())
 
 
+_PRESETS = {_key(k): v for k, v in PRESETS.items()}
+
+
 def map_expressions(avatar: Avatar, names: tuple[str, ...]) -> ExpressionMap:
     """How `names` (the take's blendshapes) drive the avatar's morph targets (empty when nothing matches)."""
     doc = avatar.doc
@@ -74,8 +77,8 @@ def map_expressions(avatar: Avatar, names: tuple[str, ...]) -> ExpressionMap:
             drive = np.zeros(len(names))
             if k in index:
                 drive[index[k]] = 1.0
-            elif k in PRESETS or (k == "blink" and not per_left_right):
-                sources = PRESETS.get(k, ("eyeBlinkLeft", "eyeBlinkRight"))
+            elif k in _PRESETS or (k == "blink" and not per_left_right):
+                sources = _PRESETS.get(k, ("eyeBlinkLeft", "eyeBlinkRight"))
                 used = [index[_key(s)] for s in sources if _key(s) in index]
                 for i in used:
                     drive[i] += 1.0 / len(used)
