@@ -41,6 +41,18 @@ def test_example_maps_join_two_people_into_one_skeleton():
     np.testing.assert_allclose(take.positions[:, 9:, 2], -0.45)
 
 
+def test_one_camera_take_with_two_people_drives_both_halves():
+    front, back = _walker(0.0), _walker(2.0)
+    crowd = np.stack([back.positions, front.positions], axis=1)        # ids 5 (back) and 3 (front)
+    camera = Take(front.model, back.positions, back.tracked, 30.0, "camera", (5, 3), crowd,
+                  np.ones((4, 2, 20), bool))
+    jmap = read_joint_map(MAPS / "two-people-horse.json")
+    joined = join_takes([camera], jmap)
+    np.testing.assert_array_equal(joined.positions, join_takes([front, back], jmap).positions)  # id 3 first
+    with pytest.raises(BadMotionError, match=r"describes 2 source\(s\) but 1 motion"):
+        join_takes([front], jmap)
+
+
 def test_drop_reparents_yaw_turns_and_lengths_join():
     jmap = parse_joint_map({"sources": [{"drop": ["Spine", "arms"], "yaw": 90}]}, "m.json")
     take = join_takes([_walker(0.0, 6)], jmap)

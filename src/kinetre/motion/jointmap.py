@@ -153,6 +153,8 @@ def join_takes(takes: list[Take], jmap: JointMap) -> Take:
     and offset, a source's roots under the `parent` joints it names.
 
     Every take is resampled to the first one's frame rate; the joined take is as long as the shortest.
+    When the map has more entries than takes, takes that record several people (camera takes) give one
+    source per person, by increasing id: one camera's two people drive the two halves of a horse.
 
     Raises
     ------
@@ -162,9 +164,11 @@ def join_takes(takes: list[Take], jmap: JointMap) -> Take:
         nothing kept at all.
     """
     where = jmap.path
+    if len(takes) < len(jmap.sources) and any(t.people for t in takes):
+        takes = [one for t in takes for one in t.split_people()]
     if len(takes) != len(jmap.sources):
         raise BadMotionError(f"{where}: describes {len(jmap.sources)} source(s) but {len(takes)} motion(s) "
-                             f"were given")
+                             f"(people, for camera takes) were given")
     fps = takes[0].fps
     takes = [t if t.fps == fps else resample(t, fps) for t in takes]
     frames = min(len(t) for t in takes)

@@ -124,6 +124,10 @@ class Take:
                     None if self.hands is None else self.hands[:, one],
                     None if self.blendshapes is None else self.blendshapes[:, one], self.blendshape_names)
 
+    def split_people(self) -> list["Take"]:
+        """Everyone as a one-person take, by increasing id (the take itself when it records no people)."""
+        return [self.person(pid) for pid in sorted(self.people)] if self.people else [self]
+
     def main_person(self) -> np.ndarray:
         """(T,) per frame the index in `people` of the person whose joints are the frame's own (the main
         person), -1 where none is (no people, or nobody tracked)."""
