@@ -191,7 +191,7 @@ def test_capture_to_take_to_avatar_carries_finger_rotations_and_morph_weights(tm
                 angle = np.degrees(np.arccos(bone @ seg / np.linalg.norm(bone) / np.linalg.norm(seg)))
                 assert angle < 0.5, f"frame {k} right {finger} bone {b}: {angle:.2f} degrees off its segment"
         want = faces[k, [BLENDSHAPES.index(m) for m in MORPHS]]
-        np.testing.assert_allclose(player.morph_weights(body, t), want, atol=1e-6)
+        np.testing.assert_allclose(player.morph_weights(t, player.tracks)[body], want, atol=1e-6)
     assert faces[:, BLENDSHAPES.index("mouthSmileRight")].min() > 0.1        # she smiles: a weight that shows
     motion, morphs = hands_and_face(avatar, bonemap, plan, retarget(plan, take.positions, take.tracked), take)
     assert set(morphs) == {0} and morphs[0].shape == (len(take), len(MORPHS))

@@ -124,3 +124,29 @@ def test_bad_input_names_the_file(tmp_path, data_dir, monkeypatch):
         capture_video(data_dir / "video" / "pose_1.mp4", max_frames=1)
     with pytest.raises(kinetre.errors.BadSettingsError, match="people must be 1 to 4"):
         CaptureSettings(people=5)
+
+
+def test_the_command_records_both_people_and_refuses_bad_input_in_one_line(tmp_path, data_dir, capsys,
+                                                                           monkeypatch):
+    from kinetre.cli import main
+    from kinetre.motion.stream import read_stream
+    clip = data_dir / "video" / "two_people_pose_1_640x360.mp4"
+    out = tmp_path / "two.kinetre.jsonl"
+    assert main(["capture", "--video", str(clip), "--every", "20", "--no-face", "-q", "-o", str(out)]) == 0
+    said = capsys.readouterr().out
+    assert "3 frames at 1.5 fps" in said and "2 people (ids 0, 1)" in said
+    take = read_stream(out)
+    assert take.people == (0, 1) and take.crowd_tracked.any(axis=2).all() and take.blendshapes is None
+
+    def refused(*argv):
+        code = main([str(a) for a in argv])
+        err = capsys.readouterr().err.strip().splitlines()
+        assert code == 2 and len(err) == 1, err
+        return err[0]
+    assert "missing.mp4: no such file" in refused("capture", "--video", tmp_path / "missing.mp4", "-o", out)
+    junk = tmp_path / "junk.mp4"
+    junk.write_text("not a video")
+    assert "junk.mp4: cannot open" in refused("capture", "--video", junk, "-o", out)
+    assert "people must be 1 to 4" in refused("capture", "--video", clip, "--people", 0, "-o", out)
+    monkeypatch.setattr(models, "search_dirs", lambda: (tmp_path,))
+    assert "pose_landmarker_full.task: not found" in refused("capture", "--video", clip, "-o", out)

@@ -1,15 +1,19 @@
-"""`kinetre capture --video CLIP | --camera N -o take.kinetre.jsonl`: a person tracked into a take."""
+"""`kinetre capture --video CLIP | --camera N -o take.kinetre.jsonl`: everyone in view (up to four people,
+their hands and faces) tracked into a take."""
 from __future__ import annotations
 
 import argparse
 import sys
+
+import numpy as np
 
 from .common import EPILOG, UsageError, output_ext, quiet_mediapipe
 
 
 def register(sub) -> None:
     """Add `kinetre capture` to the `kinetre` parser's subcommands."""
-    p = sub.add_parser("capture", help="track a person in a video or webcam into a .kinetre.jsonl take",
+    p = sub.add_parser("capture", help="track people (bodies, hands, faces) in a video or webcam into a "
+                                       ".kinetre.jsonl take",
                        epilog=EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)
     src = p.add_mutually_exclusive_group(required=True)
     src.add_argument("--video", help="video file")
@@ -20,6 +24,12 @@ def register(sub) -> None:
     p.add_argument("--camera-fps", type=float, default=30.0, help="camera: nominal frame rate written (default 30)")
     p.add_argument("--fov", type=float, default=60.0, help="camera horizontal field of view, degrees (default 60)")
     p.add_argument("--no-smooth", action="store_true", help="no One-Euro filtering")
+    p.add_argument("--people", type=int, default=4, help="most people tracked at once, 1 to 4 (default 4)")
+    p.add_argument("--no-hands", action="store_true", help="do not track hands")
+    p.add_argument("--no-face", action="store_true", help="do not track faces (blendshapes)")
+    p.add_argument("--no-tiles", action="store_true",
+                   help="search the whole frame only, not also its overlapping squares (faster; misses small people)")
+    p.add_argument("--every", type=int, default=1, metavar="N", help="video: track every N-th frame (default 1)")
     p.add_argument("-q", "--quiet", action="store_true")
     p.set_defaults(func=cmd_capture)
 
@@ -31,26 +41,35 @@ def cmd_capture(args) -> int:
 
     output_ext(args.output, (".kinetre.jsonl",))
     quiet_mediapipe()
-    settings = CaptureSettings(fov_degrees=args.fov, smooth=not args.no_smooth)
+    settings = CaptureSettings(fov_degrees=args.fov, smooth=not args.no_smooth, people=args.people,
+                               hands=not args.no_hands, face=not args.no_face, tiles=not args.no_tiles)
     if args.video is not None:
-        take = capture_video(args.video, settings, max_frames=args.max_frames, progress=not args.quiet)
+        take = capture_video(args.video, settings, max_frames=args.max_frames, progress=not args.quiet,
+                             every=args.every)
         from ..motion.stream import write_stream
         write_stream(args.output, take)
         tracked = take.tracked.any(axis=1).sum()
-        print(f"wrote {args.output}: {len(take)} frames at {take.fps:g} fps, a person in {tracked}")
+        extras = [f"{len(take.people)} people (ids {', '.join(map(str, take.people))})"] if take.people else []
+        if take.hands is not None:
+            extras.append(f"hands in {int(np.isfinite(take.hands).all(axis=(3, 4)).any(axis=(1, 2)).sum())}")
+        if take.blendshapes is not None:
+            extras.append(f"a face in {int(np.isfinite(take.blendshapes).all(axis=2).any(axis=1).sum())}")
+        print(f"wrote {args.output}: {len(take)} frames at {take.fps:g} fps, a person in {tracked}"
+              + "".join(f", {e}" for e in extras))
         return 0
     files = []  # the take file is created at the first frame, so a camera that fails leaves nothing behind
 
-    def on_frame(skeleton, t):
+    def on_frame(skeleton, t, people):
         if not files:
             try:
                 f = open(args.output, "w", encoding="utf-8")
             except OSError as e:
                 raise UsageError(f"{args.output}: cannot write ({e.strerror})") from None
-            files.append((f, TakeWriter(f, KINECT20, args.camera_fps, f"camera {args.camera}")))
+            files.append((f, TakeWriter(f, KINECT20, args.camera_fps, f"camera {args.camera}",
+                                        settings.blendshape_names)))
             if not args.quiet:
                 print(f"recording camera {args.camera} to {args.output} (Ctrl+C to stop)", file=sys.stderr)
-        files[0][1].write(skeleton, t)
+        files[0][1].write(skeleton, t, people)
 
     try:
         count = capture_camera(args.camera, on_frame, settings, seconds=args.seconds, max_frames=args.max_frames)
