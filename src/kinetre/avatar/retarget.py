@@ -32,6 +32,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..jit import njit
+from ..skeleton.attach import minimal_rotation
 from ..skeleton.models import KINECT20
 from .bonemap import BoneMap
 from .load import Avatar
@@ -512,7 +513,7 @@ def retarget_fingers(avatar: Avatar, plan: RetargetPlan, fingers, motion: Avatar
             d, side, a, b = aims[j]
             s = src[:, side, b] - src[:, side, a]
             ok = np.isfinite(s).all(axis=1) & (np.linalg.norm(np.nan_to_num(s), axis=1) > 1e-9)
-            w = _min_rotations(np.einsum("tij,j->ti", parent, d), np.nan_to_num(s)) @ parent
+            w = minimal_rotation(_unit(np.einsum("tij,j->ti", parent, d)), _unit(np.nan_to_num(s))) @ parent
             relative = _hold(np.swapaxes(parent, 1, 2) @ w, ok, eye)
         else:         # carried along: what it had relative to its parent
             relative = np.swapaxes(motion.rotations[:, vp], 1, 2) @ motion.rotations[:, j]
@@ -529,6 +530,10 @@ def retarget_fingers(avatar: Avatar, plan: RetargetPlan, fingers, motion: Avatar
     return AvatarMotion(world, local, rot)
 
 
+def _unit(v: np.ndarray) -> np.ndarray:
+    return v / np.maximum(np.linalg.norm(v, axis=-1, keepdims=True), 1e-12)
+
+
 def _child_node_position(avatar: Avatar, joint: int) -> np.ndarray | None:
     """Bind-pose world position of the first child node of a joint's node (an end bone), if any."""
     node = avatar.joints[joint]
@@ -538,27 +543,3 @@ def _child_node_position(avatar: Avatar, joint: int) -> np.ndarray | None:
     # rest_world is the bind pose for joints; a child node follows its joint rigidly
     offset = np.linalg.solve(avatar.rest_world[node], avatar.rest_world[children[0]])
     return (avatar.bind_world[joint] @ offset)[:3, 3]
-
-
-def _min_rotations(u: np.ndarray, v: np.ndarray) -> np.ndarray:
-    """(T, 3, 3): per row the smallest rotation turning direction u onto v (Rodrigues); identity where v
-    is zero, half a turn about a perpendicular axis where they are opposite."""
-    u = u / np.maximum(np.linalg.norm(u, axis=1, keepdims=True), 1e-12)
-    nv = np.linalg.norm(v, axis=1, keepdims=True)
-    v = np.where(nv > 1e-12, v / np.maximum(nv, 1e-12), u)
-    axis = np.cross(u, v)
-    s2 = np.einsum("ti,ti->t", axis, axis)
-    c = np.einsum("ti,ti->t", u, v)
-    k = np.zeros((len(u), 3, 3))
-    k[:, 0, 1], k[:, 0, 2], k[:, 1, 2] = -axis[:, 2], axis[:, 1], -axis[:, 0]
-    k[:, 1, 0], k[:, 2, 0], k[:, 2, 1] = axis[:, 2], -axis[:, 1], axis[:, 0]
-    out = np.eye(3) + k + ((1.0 - c) / np.maximum(s2, 1e-24))[:, None, None] * (k @ k)
-    flip = (s2 <= 1e-24) & (c < 0)
-    if flip.any():
-        perp = np.cross(u[flip], [1.0, 0.0, 0.0])
-        weak = np.linalg.norm(perp, axis=1) < 1e-6
-        perp[weak] = np.cross(u[flip][weak], [0.0, 1.0, 0.0])
-        perp /= np.linalg.norm(perp, axis=1, keepdims=True)
-        out[flip] = 2.0 * np.einsum("ti,tj->tij", perp, perp) - np.eye(3)
-    out[(s2 <= 1e-24) & (c >= 0)] = np.eye(3)
-    return out
