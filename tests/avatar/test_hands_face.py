@@ -195,3 +195,29 @@ def test_capture_to_take_to_avatar_carries_finger_rotations_and_morph_weights(tm
     assert faces[:, BLENDSHAPES.index("mouthSmileRight")].min() > 0.1        # she smiles: a weight that shows
     motion, morphs = hands_and_face(avatar, bonemap, plan, retarget(plan, take.positions, take.tracked), take)
     assert set(morphs) == {0} and morphs[0].shape == (len(take), len(MORPHS))
+
+
+def test_each_person_of_a_camera_take_drives_their_own_avatar(tmp_path, data_dir, walk, capsys):
+    from kinetre.motion.stream import write_stream
+    other = walk.transformed(rotation=np.diag([-1.0, 1.0, -1.0]), translation=(1.5, 0.0, 0.0))  # walks back
+    crowd = np.stack([walk.positions, other.positions], axis=1)
+    two = Take(walk.model, walk.positions, walk.tracked, walk.fps, "two", (0, 1), crowd,
+               np.stack([walk.tracked, other.tracked], axis=1))
+    write_stream(tmp_path / "two.kinetre.jsonl", two)
+    write_stream(tmp_path / "second.kinetre.jsonl", other)
+    avatar = data_dir / "avatars" / "RiggedFigure.glb"
+    outs = {}
+    for name, argv in (("person1", ["--motion", tmp_path / "two.kinetre.jsonl", "--person", 1]),
+                       ("alone", ["--motion", tmp_path / "second.kinetre.jsonl"])):
+        outs[name] = tmp_path / f"{name}.bvh"
+        assert main(["avatar", str(avatar), *map(str, argv), "-q", "-o", str(outs[name])]) == 0
+    assert outs["person1"].read_text() == outs["alone"].read_text()
+    main_person = tmp_path / "main.bvh"                    # without --person: the main person (id 0)
+    assert main(["avatar", str(avatar), "--motion", str(tmp_path / "two.kinetre.jsonl"), "-q", "-o",
+                 str(main_person)]) == 0
+    assert main_person.read_text() != outs["alone"].read_text()
+    capsys.readouterr()
+    assert main(["avatar", str(avatar), "--motion", str(tmp_path / "two.kinetre.jsonl"), "--person", "9",
+                 "-o", str(tmp_path / "x.bvh")]) == 2
+    assert "no person 9 (the take has [0, 1])" in capsys.readouterr().err
+

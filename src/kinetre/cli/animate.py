@@ -19,6 +19,8 @@ def register(sub) -> None:
                        epilog=EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("mesh", help="mesh file (.obj .ply .stl .off .glb .gltf, optionally .gz), or RGB-D frames "
                                 "(a folder or .zip) to scan first")
+    p.add_argument("--person", type=int, default=None, metavar="ID",
+                   help="a camera take's person to follow, by id (default: the main person)")
     p.add_argument("--motion", required=True, action="append",
                    help="motion: .bvh, .kinetre.jsonl, a video, or a glTF animation (Fox.glb#Walk, Fox.glb#1); "
                         "repeat it with --map to join several sources")
@@ -171,7 +173,12 @@ def _load_motions(args):
         raise UsageError(f"{len(motions)} --motion given: a --map JSON says how they share the mesh "
                          f"(see docs/joint-maps.md)")
     if args.map is None:
-        return load_motion(motions[0], args.scale, as_kinect=not args.own_skeleton), motions[0]
+        take = load_motion(motions[0], args.scale, as_kinect=not args.own_skeleton)
+        if args.person is not None:
+            return take.person(args.person), f"{motions[0]} (person {args.person})"
+        return take, motions[0]
+    if args.person is not None:
+        raise UsageError("--person picks one person; with --map each map entry takes a motion or a person")
     from ..motion.jointmap import join_takes, read_joint_map
     jmap = read_joint_map(args.map)
     takes = [load_motion(m, args.scale, as_kinect=not args.own_skeleton) for m in motions]

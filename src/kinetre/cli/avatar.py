@@ -23,6 +23,8 @@ def register(sub) -> None:
                     "animated by its own skeleton.")
     p.add_argument("avatar", help="rigged humanoid: .glb, .gltf or .vrm")
     p.add_argument("--motion", help="motion: .bvh, .kinetre.jsonl or a video")
+    p.add_argument("--person", type=int, default=None, metavar="ID",
+                   help="a camera take's person to follow, by id (default: the main person)")
     p.add_argument("-o", "--output", help=f"output: {' '.join(OUTPUTS)}")
     p.add_argument("--vmc", default=None, metavar="HOST:PORT",
                    help="stream the take in real time to a VMC receiver (VSeeFace, Warudo...; port 39539 by "
@@ -72,6 +74,8 @@ def cmd_avatar(args) -> int:
     if args.motion.lower().endswith(VIDEO_EXTS):
         quiet_mediapipe()
     take = kinect_take(load_motion(args.motion, args.scale))
+    if args.person is not None:
+        take = take.person(args.person)
     frames = frame_range(args.frames)
     take = take.slice(frames.start or 0, frames.stop)
     take = resample(take, args.fps if args.fps is not None else min(take.fps, 30.0))

@@ -115,6 +115,9 @@ class Take:
 
     def person(self, pid: int) -> "Take":
         """Person `pid` alone (their joints, hands and face) as a one-person take."""
+        if not self.people:
+            raise BadMotionError(f"{self.source or 'take'}: records no people by id (not a camera take), so there "
+                                 f"is no person {pid}")
         if pid not in self.people:
             raise BadMotionError(f"{self.source or 'take'}: no person {pid} (the take has {list(self.people)})")
         k = self.people.index(pid)
