@@ -131,7 +131,7 @@ class PoseTracker:
                 marks = np.full((2, 21, 3), np.nan)
                 for side in (0, 1):
                     if (k, side) in hand_of:
-                        marks[side] = self._hand_in_take(hand_of[k, side], body, skeleton, side, int(pid), w, h)
+                        marks[side] = self._hand_in_take(hand_of[k, side], body, skeleton, side, int(pid))
             face = face_of[k].blendshapes if k in face_of else None
             people.append(PersonFrame(int(pid), skeleton, marks, face))
         people.sort(key=lambda p: p.id)
@@ -156,15 +156,15 @@ class PoseTracker:
             positions = self._filters[pid](positions, t)
         return Skeleton(KINECT20, positions, np.isfinite(positions).all(axis=1))
 
-    def _hand_in_take(self, hand: Hand, body: Body, skeleton: Skeleton, side: int, pid: int,
-                      w: int, h: int) -> np.ndarray:
+    def _hand_in_take(self, hand: Hand, body: Body, skeleton: Skeleton, side: int, pid: int) -> np.ndarray:
         """The hand's landmarks in the take's frame, its wrist at the body's (the tracked Kinect wrist, else
         the body's own wrist landmark however visible)."""
         joint = KINECT20.index("WristLeft" if side == 0 else "WristRight")
         if skeleton.tracked[joint]:
             wrist = skeleton.positions[joint]
         else:
-            wrist = FLIP @ (body.world[_WRISTS[side]] + self._roots.get(pid, self._root(pid, body, w, h)))
+            root = self._roots.get(pid, np.array([0.0, 0.0, self.settings.default_depth]))
+            wrist = FLIP @ (body.world[_WRISTS[side]] + root)
         return (hand.world - hand.world[0]) @ FLIP.T + wrist
 
 
