@@ -1,11 +1,14 @@
-"""Import hygiene of the package: no module imports another in a circle, and none takes another
-module's private (`_name`) definitions. Imports inside functions and `TYPE_CHECKING` blocks count."""
+"""Import hygiene of the package and of the web page: no module imports another in a circle, and no Python
+module takes another module's private (`_name`) definitions. Imports inside functions and `TYPE_CHECKING`
+blocks count, and so do TypeScript's type-only imports (`import type`)."""
 import ast
+import re
 from pathlib import Path
 
 import pytest
 
 SRC = Path(__file__).resolve().parents[1] / "src"
+WEB = Path(__file__).resolve().parents[1] / "web" / "src"
 PACKAGE = "kinetre"
 
 # Known findings in modules under rework elsewhere, each with the reason it is still here. Emptied as
@@ -167,3 +170,55 @@ def test_no_private_imports():
     assert not unexpected, "private names imported from other modules (importer, module, name): " + repr(unexpected)
     stale = sorted(set(ALLOWED_PRIVATE) - found)
     assert not stale, f"allowed private imports that no longer occur (remove them): {stale}"
+
+
+# --- the web page (TypeScript) --------------------------------------------------------------------------
+TS_IMPORT = re.compile(r"""(?:^|[;\s])(?:import|export)\s+(?:type\s+)?(?:[^'";]*?\sfrom\s*)?['"]([^'"]+)['"]"""
+                       r"""|\bimport\(\s*['"]([^'"]+)['"]\s*\)""", re.S)
+TS_COMMENT = re.compile(r"/\*.*?\*/|^\s*//[^\n]*", re.S | re.M)
+
+
+def ts_imports(path: Path, known: set[Path]) -> set[Path]:
+    """The page's modules that `path` imports: static, type-only, re-exports and dynamic `import()`."""
+    text = TS_COMMENT.sub("", path.read_text())
+    found = set()
+    for match in TS_IMPORT.finditer(text):
+        spec = match.group(1) or match.group(2)
+        if not spec.startswith("."):
+            continue  # a package
+        base = (path.parent / spec).resolve()
+        for candidate in (base, base.with_name(base.name + ".ts"), base / "index.ts"):
+            if candidate in known:
+                found.add(candidate)
+                break
+    found.discard(path)
+    return found
+
+
+def ts_graph(root: Path) -> dict[str, set[str]]:
+    files = {p.resolve() for p in root.rglob("*.ts")}
+    name = lambda p: str(p.relative_to(root.resolve()))  # noqa: E731
+    return {name(p): {name(q) for q in ts_imports(p, files)} for p in sorted(files)}
+
+
+def test_the_typescript_checker_finds_a_type_only_cycle(tmp_path):
+    (tmp_path / "app").mkdir()
+    (tmp_path / "physics").mkdir()
+    (tmp_path / "app" / "Studio.ts").write_text(
+        "import { Playground } from '../physics/Playground';\nimport './style.css';\n")
+    (tmp_path / "physics" / "Playground.ts").write_text(
+        "// import { Nothing } from '../app/Nothing';\nimport type {\n  Studio,\n} from '../app/Studio';\n"
+        "import * as THREE from 'three';\nexport { Ball } from './Ball';\n")
+    (tmp_path / "physics" / "Ball.ts").write_text("export const url = 'x from \"y\"';\n"
+                                                  "const later = () => import('./Playground');\n")
+    edges = ts_graph(tmp_path)
+    assert edges["app/Studio.ts"] == {"physics/Playground.ts"}
+    assert edges["physics/Playground.ts"] == {"app/Studio.ts", "physics/Ball.ts"}
+    assert edges["physics/Ball.ts"] == {"physics/Playground.ts"}
+    assert cycles(edges) == [["app/Studio.ts", "physics/Ball.ts", "physics/Playground.ts"]]
+
+
+def test_no_import_cycles_in_the_page():
+    edges = ts_graph(WEB)
+    assert len(edges) > 20 and sum(map(len, edges.values())) > 40  # the page's modules were read
+    assert not cycles(edges), f"import cycles in web/src: {cycles(edges)}"

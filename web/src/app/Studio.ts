@@ -1,20 +1,14 @@
-// The page's wiring: one socket to the server, the 3D view, the mesh skinned by the server's node
-// transforms, the user's own capture (camera → MediaPipe → Kinect 20 → the user's skeleton channel),
-// other users' skeletons, the rigging view, voice, and takes.
+// The page's wiring along the data path: this page's capture (CaptureLoop) → its skeleton channel on the
+// socket → the server's node transforms → the mesh skinned on the GPU, with the other users' skeletons,
+// the rigging view, an avatar, a face, physics (Playground), voice, and takes (TakeSession).
 import { Camera } from '../capture/Camera';
 import { FaceController, installFaceTestHook } from '../face/FaceController';
 import { neckAnchor } from '../face/neckAnchor';
-import { KinectMapper } from '../capture/KinectMapper';
-import { LandmarkTracker } from '../capture/LandmarkTracker';
-import { PersonTracks } from '../capture/PersonTracks';
-import type { Detection } from '../capture/detection';
 import { JOINT_COUNT } from '../capture/kinect20';
 import type { SceneState, ServerMessage, SkeletonMessage, TransformBlock, Vec3 } from '../net/protocol';
 import { StudioSocket } from '../net/StudioSocket';
 import { AvatarStage } from '../avatar/AvatarStage';
 import { Playground } from '../physics/Playground';
-import { CanvasRecorder } from '../record/CanvasRecorder';
-import { TakeRecorder } from '../record/TakeRecorder';
 import { AttachPreview } from '../rigging/AttachPreview';
 import { MeshUploader } from '../rigging/MeshUploader';
 import { PlacementControls } from '../rigging/PlacementControls';
@@ -25,6 +19,9 @@ import { Viewport } from '../scene/Viewport';
 import { Panel } from '../ui/Panel';
 import { JointMapControl } from '../rigging/JointMapControl';
 import { VoiceListener, type VoiceResult } from '../voice/VoiceListener';
+import { CaptureLoop, type UserFrame } from './CaptureLoop';
+import { statusLine } from './StatusLine';
+import { TakeSession } from './TakeSession';
 
 const OTHER_COLOURS = [0x7fdbff, 0xb10dc9, 0x2ecc40, 0xffdc00];
 const MY_COLOUR = 0xffffff;
@@ -36,20 +33,9 @@ export class Studio {
   readonly panel: Panel;
   readonly placement: PlacementControls;
   readonly camera: Camera;
-  readonly tracker = new LandmarkTracker({
-    wasm: new URL('mediapipe/tasks-vision/', document.baseURI).href,
-    models: new URL('models/', document.baseURI).href,
-    delegate: (new URLSearchParams(location.search).get('delegate')?.toUpperCase() as 'CPU' | 'GPU' | null) ?? 'auto',
-    numPoses: 4,
-    features: { hands: !new URLSearchParams(location.search).has('nohands'), face: !new URLSearchParams(location.search).has('noface') },
-  });
-  readonly tracks = new PersonTracks();
-  /** Ids of the people in this camera's view, and the one this page's own channel follows. */
-  people: number[] = [];
-  readonly mapper = new KinectMapper();
+  readonly capture: CaptureLoop;
   readonly voice: VoiceListener;
-  readonly takes = new TakeRecorder();
-  readonly video: CanvasRecorder;
+  readonly takes: TakeSession;
   readonly uploader: MeshUploader;
   readonly jointMap: JointMapControl;
   readonly avatars: AvatarStage;
@@ -63,8 +49,6 @@ export class Studio {
   connected = false;
   sceneLost = false;
   seq = 0;
-  trackedJoints = 0;
-  trackingLost = false;
   lastVoice: VoiceResult | null = null;
   transformsSeen = 0;
   latency: number[] = [];
@@ -77,7 +61,7 @@ export class Studio {
     this.viewport.scene.add(this.me.group);
     this.me.group.visible = false;
     this.panel = new Panel(root, {
-      camera: () => void this.toggleCamera(),
+      camera: () => void this.capture.toggle(),
       voice: () => void this.toggleVoice(),
       sample: () => this.socket.send({ type: 'player', on: !this.sampleUser() }),
       possess: () => this.socket.send({ type: 'possess', subset: this.panel.subset }),
@@ -85,14 +69,25 @@ export class Studio {
       subset: (name) => this.socket.send({ type: 'subset', subset: name }),
       fit: () => this.socket.send({ type: 'fit' }),
       mode: (mode) => this.placement.setMode(mode),
-      record: () => void this.toggleRecord(),
+      record: () => void this.takes.toggle(),
     });
+    const say = (text: string, error?: boolean) => this.panel.setMessage(text, error);
     this.camera = new Camera(root);
-    this.avatars = new AvatarStage(this.viewport.scene, this.panel.root, (t, e) => this.panel.setMessage(t, e));
+    this.capture = new CaptureLoop(this.camera, {
+      say,
+      running: (on) => { this.panel.setActive('camera', on); this.panel.showDriving(on); },
+      user: (frame) => this.onUser(frame),
+    });
+    this.avatars = new AvatarStage(this.viewport.scene, this.panel.area('avatar'), say);
     this.placement = new PlacementControls(this.viewport.camera, this.viewport.renderer.domElement,
       this.viewport.controls, this.viewport.scene, (m) => this.socket.send(m));
     this.voice = new VoiceListener(() => this.socket.client, (r) => this.onVoice(r));
-    this.video = new CanvasRecorder(this.viewport.renderer.domElement);
+    this.takes = new TakeSession(this.viewport.renderer.domElement, {
+      say,
+      downloads: (links) => this.panel.setDownloads(links),
+      companion: this.avatars,
+      recorded: (url, fps) => { if (this.state) this.physics.setTake(url, fps, this.state.placement.matrix); },
+    });
     this.uploader = new MeshUploader({
       onProgress: (label, f) => this.panel.setProgress(label, f),
       onDone: () => {
@@ -105,7 +100,7 @@ export class Studio {
       onError: (m) => { this.panel.setProgress(null); this.panel.setMessage(m, true); },
     }, (file) => this.avatars.tryUpload(file));
     this.uploader.bind(root, this.panel.fileInput);
-    this.jointMap = new JointMapControl(this.panel.root, (text, error) => this.panel.setMessage(text, error));
+    this.jointMap = new JointMapControl(this.panel.area('body'), say);
 
     const url = `${location.protocol === 'https:' ? 'wss' : 'ws'}://${location.host}${location.pathname.replace(/[^/]*$/, '')}ws`;
     this.socket = new StudioSocket(url, {
@@ -119,8 +114,18 @@ export class Studio {
       },
     });
     this.viewport.onFrame(() => this.frame());
-    this.physics = new Playground(this);
-    this.face = new FaceController(this.camera, this.viewport, this.panel.root, (t, e) => this.panel.setMessage(t, e));
+    this.physics = new Playground({
+      viewport: this.viewport,
+      area: this.panel.area('physics'),
+      meshMatrix: () => {
+        this.placement.holder.updateMatrixWorld(true);
+        return this.placement.holder.matrixWorld.elements;
+      },
+      liveMesh: () => this.graphMesh,
+      say,
+      progress: (label, fraction) => this.panel.setProgress(label, fraction),
+    });
+    this.face = new FaceController(this.camera, this.viewport, this.panel.area('face'), say);
     this.face.anchor = () => neckAnchor((joint) => this.avatars.bone(joint));  // on an avatar's neck, if any
     installFaceTestHook(this.face);
   }
@@ -205,54 +210,14 @@ export class Studio {
   }
 
   // --- capture ------------------------------------------------------------------------------------
-  private async toggleCamera(): Promise<void> {
-    if (this.camera.running) {
-      this.camera.stop();
-      this.tracks.forget();
-      this.people = [];
-      this.panel.setActive('camera', false);
-      return;
-    }
-    try {
-      this.panel.setMessage('starting the camera and the pose tracker…');
-      await this.camera.start();
-      await this.tracker.init();
-      this.panel.setActive('camera', true);
-      this.panel.setMessage('step back until your whole body is in view, then “Fit to me” and “Possess”');
-      void this.trackLoop();
-    } catch (err) {
-      this.camera.stop();
-      this.panel.setMessage(`camera: ${(err as Error).message}`, true);
-    }
-  }
-
-  private async trackLoop(): Promise<void> {
-    this.tracker.onDetection = (d) => this.onDetection(d);
-    while (this.camera.running) {
-      await this.tracker.offer(this.camera.video);
-      await new Promise((resolve) => setTimeout(resolve, 5));
-    }
-  }
-
-  private onDetection(d: Detection): void {
-    if (!this.camera.running) return;
-    const ids = this.tracks.update(d.poses, d.width / d.height, d.t);
-    this.people = [...ids].sort((a, b) => a - b);
-    // this page's channel follows the person tracked longest (the lowest id in view)
-    const first = ids.indexOf(this.people[0]);
-    const pose = first >= 0 ? d.poses[first] : null;
-    if (pose) {
-      const frame = this.mapper.map(pose.world, pose.image);
-      this.trackedJoints = frame.tracked.filter(Boolean).length;
-      this.trackingLost = false;
+  private onUser(frame: UserFrame | null): void {
+    if (frame) {
       this.me.group.visible = true;
       this.me.update(frame.positions, this.preview?.attachableJoints ?? []);
       this.sendFrame(frame.positions, frame.tracked);
       this.avatars.drive(frame.positions, frame.tracked, 'me');
     } else {
       // nobody in view: an all-untracked frame makes the server hold the last pose
-      this.trackingLost = true;
-      this.trackedJoints = 0;
       this.sendFrame(new Array(JOINT_COUNT).fill(null), new Array(JOINT_COUNT).fill(false));
     }
   }
@@ -261,7 +226,7 @@ export class Studio {
     this.socket.sendFrame({ type: 'skeleton', seq: ++this.seq, t: Date.now(), model: 'kinect20', positions, tracked });
   }
 
-  // --- voice and takes ----------------------------------------------------------------------------
+  // --- voice ----------------------------------------------------------------------------------------
   private async toggleVoice(): Promise<void> {
     if (this.voice.listening) {
       this.voice.stop();
@@ -284,37 +249,6 @@ export class Studio {
       if (r.command.subset) this.panel.subset = r.command.subset;
       if (r.command.verb === 'reset') this.physics.reset();
       this.panel.setMessage(`heard “${r.command.text}”`);
-    }
-  }
-
-  private async toggleRecord(): Promise<void> {
-    try {
-      if (!this.takes.recording) {
-        await this.takes.start();
-        this.avatars.startRecording();
-        this.video.start();
-        this.panel.setDownloads([]);
-        this.panel.setMessage('recording… press Space or Record again to stop');
-        return;
-      }
-      const avatarTake = this.avatars.stopRecording().catch((e: Error) => { this.panel.setMessage(e.message, true); return []; });
-      const [take, webm] = await Promise.all([this.takes.stop(), this.video.stop()]).catch(async (err) => {
-        this.panel.setDownloads(await avatarTake); // the avatar's take stands on its own
-        throw err;
-      });
-      const avatar = await avatarTake;
-      if (take.files.transforms && this.state) this.physics.setTake(take.files.transforms, take.fps, this.state.placement.matrix);
-      const links = Object.entries(take.files).filter(([kind]) => kind !== 'transforms').map(([kind, href]) => ({
-        label: kind === 'stream' ? 'skeleton stream' : kind.toUpperCase(), href,
-        file: href.split('/').pop() as string,
-      }));
-      links.push(...avatar);
-      if (webm) links.push({ label: 'WebM', href: URL.createObjectURL(webm), file: `kinetre-${take.take}.webm` });
-      this.panel.setDownloads(links);
-      this.panel.setMessage(`take ${take.take}: ${take.frames} frames at ${take.fps} fps`);
-    } catch (err) {
-      await this.video.stop();
-      this.panel.setMessage((err as Error).message, true);
     }
   }
 
@@ -356,18 +290,10 @@ export class Studio {
   }
 
   private updateStatus(): void {
-    const offline = this.socket.refused ? `refused: ${this.socket.refused}` : 'offline: reconnecting…';
-    const parts = [this.connected ? `connected as ${this.socket.client}` : offline];
-    if (this.sceneLost) parts.push('scene lost');
-    if (this.state) {
-      parts.push(`${this.state.mesh.name} (${this.state.mesh.nodes} nodes)`);
-      const drivers = this.state.users.filter((u) => u.possessing).map((u) => (u.client === this.socket.client ? 'you' : u.client));
-      parts.push(drivers.length ? `driven by ${drivers.join(' + ')}` : 'nobody possesses the mesh');
-      if (this.state.solve_ms !== null) parts.push(`solve ${this.state.solve_ms.toFixed(1)} ms`);
-    }
-    if (this.camera.running) parts.push(this.trackingLost ? 'tracking lost: holding the pose' : `tracking ${this.trackedJoints}/20`);
-    const fps = this.viewport.fps;
-    if (Number.isFinite(fps) && fps > 0) parts.push(`${fps.toFixed(0)} fps`);  // no "Infinity" before two frames
-    this.panel.setStatus(parts.join(' · '));
+    this.panel.setStatus(statusLine({
+      connected: this.connected, client: this.socket.client, refused: this.socket.refused, sceneLost: this.sceneLost,
+      state: this.state, camera: this.camera.running, trackingLost: this.capture.trackingLost,
+      trackedJoints: this.capture.trackedJoints, fps: this.viewport.fps,
+    }));
   }
 }

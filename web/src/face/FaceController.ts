@@ -38,20 +38,24 @@ export class FaceController {
   private recording: Recording | null = null;
   private rate: number[] = [];
 
-  constructor(private readonly camera: Camera, private readonly viewport: Viewport, panelRoot: HTMLElement,
+  constructor(private readonly camera: Camera, private readonly viewport: Viewport, area: HTMLElement,
               private readonly say: (text: string, error?: boolean) => void) {
     this.section = document.createElement('div');
     this.section.className = 'face-controls';
     this.section.innerHTML = `
       <div class="row">
         <button id="face" title="G: your face, live, on a puppet">Face</button>
-        <select id="face-preset" title="caricature presets"></select>
-        <button id="face-record" title="record a face take (GLB with the caricature morphs)">Record face</button>
         <a href="annotate/" target="_blank" title="annotate a photo the tracker misses">Annotate…</a>
       </div>
-      <div id="face-sliders"></div>
-      <div id="face-downloads"></div>`;
-    panelRoot.appendChild(this.section);
+      <div id="face-in-use" hidden>
+        <div class="row">
+          <select id="face-preset" title="caricature presets"></select>
+          <button id="face-record" title="record a face take (GLB with the caricature morphs)">Record face</button>
+        </div>
+        <div id="face-sliders"></div>
+        <div id="face-downloads"></div>
+      </div>`;
+    area.appendChild(this.section);
     const $ = <T extends HTMLElement>(id: string) => this.section.querySelector(`#${id}`) as T;
     this.button = $<HTMLButtonElement>('face');
     this.recordButton = $<HTMLButtonElement>('face-record');
@@ -105,6 +109,7 @@ export class FaceController {
         this.puppet = new FacePuppet(template, this.camera.video);
         this.puppet.setMorphs(this.weights);
         this.viewport.scene.add(this.puppet.mesh);
+        (this.section.querySelector('#face-in-use') as HTMLElement).hidden = false;  // a face to shape and record
       }
       this.on = true;
       this.button.classList.add('active');

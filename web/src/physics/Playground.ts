@@ -1,9 +1,10 @@
-// Physics play in the studio (SPEC §4): the possessed mesh's sphere proxies in a Rapier world with a scene
+// Physics play in the studio: the possessed mesh's sphere proxies in a Rapier world with a scene
 // preset (box tower, dodgeball, ground only), stepped at a fixed 1/60 s behind the render loop; reset by
 // button, key X or the voice command "reset"; the proxies shown on request (key O); and the last recorded
 // take replayed through the physics deterministically into a WebM at the take's own frame rate.
-import type { Studio } from '../app/Studio';
 import type { MeshData } from '../scene/MeshPayload';
+import type { SkinnedGraphMesh } from '../scene/SkinnedGraphMesh';
+import type { Viewport } from '../scene/Viewport';
 import { PhysicsView } from './PhysicsView';
 import { PhysicsWorld, STEP } from './PhysicsWorld';
 import { PRESETS, type PresetName } from './presets';
@@ -20,6 +21,19 @@ const MAX_STEPS_PER_FRAME = 4; // a slow frame drops simulated time rather than 
 export interface ReplayReport {
   frames: number; steps: number; knockedDown: number; boxes: number; videoBytes: number;
   preset: PresetName; placement: number[]; states: number[]; // what a node replay of the same take must match
+}
+
+/** What the playground needs from the page around it. */
+export interface PlaygroundHost {
+  readonly viewport: Viewport;
+  /** The panel area its controls go in. */
+  readonly area: HTMLElement;
+  /** The live mesh's world matrix (its placement), column-major. */
+  meshMatrix(): ArrayLike<number>;
+  /** The live mesh, which a replay poses; null before one is loaded. */
+  liveMesh(): SkinnedGraphMesh | null;
+  say(text: string, error?: boolean): void;
+  progress(label: string | null, fraction?: number): void;
 }
 
 export class Playground {
@@ -39,8 +53,8 @@ export class Playground {
   private readonly buttons: Record<'reset' | 'spheres' | 'replay', HTMLButtonElement>;
   private readonly link: HTMLAnchorElement;
 
-  constructor(private readonly studio: Studio) {
-    this.view = new PhysicsView(studio.viewport.scene);
+  constructor(private readonly host: PlaygroundHost) {
+    this.view = new PhysicsView(host.viewport.scene);
     const wanted = new URLSearchParams(location.search).get('physics');
     this.preset = PRESETS.includes(wanted as PresetName) ? (wanted as PresetName) : 'off';
     const row = document.createElement('div');
@@ -52,8 +66,7 @@ export class Playground {
       <button id="physics-spheres" title="O: show the mesh's sphere proxies">Spheres</button>
       <button id="physics-replay" title="replay the last take through the physics into a WebM" disabled>Replay take</button>
       <a id="physics-video" class="download" hidden>Physics WebM</a>`;
-    const message = studio.panel.root.querySelector('#progress-row');
-    studio.panel.root.insertBefore(row, message);
+    host.area.appendChild(row);
     this.select = row.querySelector('select') as HTMLSelectElement;
     for (const name of ['off', ...PRESETS] as const) this.select.add(new Option(LABELS[name], name));
     this.select.value = this.preset;
@@ -67,6 +80,7 @@ export class Playground {
     this.buttons.spheres.addEventListener('click', () => this.toggleSpheres());
     this.buttons.replay.addEventListener('click', () => void this.replay());
     this.link = row.querySelector('#physics-video') as HTMLAnchorElement;
+    this.showControls();
     window.addEventListener('keydown', (e) => {
       if (e.target instanceof HTMLInputElement || e.target instanceof HTMLSelectElement || e.repeat) return;
       const key = e.key.toLowerCase();
@@ -75,7 +89,7 @@ export class Playground {
       else return;
       e.preventDefault();
     });
-    studio.viewport.onFrame((dt) => this.frame(dt));
+    host.viewport.onFrame((dt) => this.frame(dt));
     if (this.preset !== 'off') void this.rapier();
   }
 
@@ -86,6 +100,7 @@ export class Playground {
     this.rows = null;
     this.take = null;
     this.buttons.replay.disabled = true;
+    this.showControls();
     this.reset();
   }
 
@@ -98,12 +113,21 @@ export class Playground {
   setTake(url: string, fps: number, placement: number[]): void {
     this.take = { url, fps, placement };
     this.buttons.replay.disabled = false;
+    this.showControls();
   }
 
   setPreset(preset: PresetName | 'off'): void {
     this.preset = preset;
     this.select.value = preset;
+    this.showControls();
     this.reset();
+  }
+
+  /** Only the controls in use: a world's (reset, spheres) while a preset is on, the replay once there is a take. */
+  private showControls(): void {
+    this.buttons.reset.hidden = this.preset === 'off';
+    this.buttons.spheres.hidden = this.preset === 'off';
+    this.buttons.replay.hidden = !this.take;
   }
 
   /** Rapier, loaded on first use (then a reset builds the world). */
@@ -141,8 +165,7 @@ export class Playground {
 
   // --- live stepping ------------------------------------------------------------------------------
   private placement(): ArrayLike<number> {
-    this.studio.placement.holder.updateMatrixWorld(true);
-    return this.studio.placement.holder.matrixWorld.elements;
+    return this.host.meshMatrix();
   }
 
   private frame(dt: number): void {
@@ -165,10 +188,10 @@ export class Playground {
   /** Replay the last take through a fresh world (fixed step and seed) and render it into a WebM. */
   async replay(): Promise<ReplayReport | null> {
     const { take, proxies } = this;
-    const mesh = this.studio.graphMesh;
+    const mesh = this.host.liveMesh();
     if (!take || !proxies || !mesh || this.replaying) return null;
     const R = await this.rapier();
-    const panel = this.studio.panel;
+    const host = this.host;
     this.replaying = true;
     this.buttons.replay.disabled = true;
     let replay: TakeReplay | null = null;
@@ -181,15 +204,15 @@ export class Playground {
       this.world?.free();
       this.world = replay.world;
       this.view.build(this.world);
-      const video = TakeVideo.supported() ? new TakeVideo(this.studio.viewport.renderer.domElement, take.fps) : null;
+      const video = TakeVideo.supported() ? new TakeVideo(host.viewport.renderer.domElement, take.fps) : null;
       const stepsPerFrame = Math.max(1, Math.round(1 / (STEP * take.fps)));
       for (let k = 0; ; k++) {
         const f = frames[Math.min(k, frames.length - 1)];
         mesh.setNodeMatrices(f.rows, f.seq);
         this.view.sync(replay.world);
-        this.studio.viewport.renderer.render(this.studio.viewport.scene, this.studio.viewport.camera);
+        host.viewport.renderer.render(host.viewport.scene, host.viewport.camera);
         await video?.add();
-        if (k % 10 === 0) panel.setProgress('replaying the take', replay.world.steps / replay.totalSteps);
+        if (k % 10 === 0) host.progress('replaying the take', replay.world.steps / replay.totalSteps);
         if (replay.done) break;
         for (let s = 0; s < stepsPerFrame; s++) replay.next();
       }
@@ -205,14 +228,14 @@ export class Playground {
         boxes: replay.world.boxes.length, videoBytes: blob?.size ?? 0,
         preset, placement: take.placement, states: replay.world.boxStates(),
       };
-      panel.setMessage(`replayed ${frames.length} frames: ${this.lastReplay.knockedDown} of ${this.lastReplay.boxes} boxes down`
+      host.say(`replayed ${frames.length} frames: ${this.lastReplay.knockedDown} of ${this.lastReplay.boxes} boxes down`
         + (blob ? '; the video is under “Physics WebM”' : '; this browser cannot encode video (no WebCodecs)'));
       return this.lastReplay;
     } catch (err) {
-      panel.setMessage(`replay: ${(err as Error).message}`, true);
+      host.say(`replay: ${(err as Error).message}`, true);
       return null;
     } finally {
-      panel.setProgress(null);
+      host.progress(null);
       this.replaying = false;
       this.buttons.replay.disabled = !this.take;
       if (this.rows) mesh.setNodeMatrices(this.rows, mesh.seq); // back to the live pose

@@ -12,7 +12,7 @@ export class JointMapControl {
   private readonly label: HTMLElement;
   private readonly clear: HTMLButtonElement;
 
-  constructor(panel: HTMLElement, private readonly say: (text: string, error?: boolean) => void) {
+  constructor(area: HTMLElement, private readonly say: (text: string, error?: boolean) => void) {
     this.row = document.createElement('div');
     this.row.className = 'row';
     this.row.id = 'joint-map-row';
@@ -20,8 +20,7 @@ export class JointMapControl {
       <label class="file" title="a JSON joint map: which joints each possessing user drives with">Joint map… <input type="file" id="joint-map" accept=".json,application/json"></label>
       <button id="joint-map-clear" hidden>Clear</button>
       <span id="joint-map-name" class="hint"></span>`;
-    const before = panel.querySelector('#progress-row');
-    panel.insertBefore(this.row, before);
+    area.appendChild(this.row);
     const input = this.row.querySelector('#joint-map') as HTMLInputElement;
     this.label = this.row.querySelector('#joint-map-name') as HTMLElement;
     this.clear = this.row.querySelector('#joint-map-clear') as HTMLButtonElement;

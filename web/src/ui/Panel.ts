@@ -1,4 +1,8 @@
-// The control panel: buttons with keyboard shortcuts, the subset choice, status, progress and downloads.
+// The control panel, in areas by what a person is doing: the scene (which mesh, where), the body (camera,
+// voice, possession), an avatar, a face, physics, and recording. Modules put their controls in their area
+// (`area(name)`), and an area shows only the controls in use: one whose controls are all hidden shows
+// nothing, not even its heading (style.css). Buttons have keyboard shortcuts; status, progress and the
+// message line stay on top of and below the areas.
 import { SUBSETS } from '../capture/kinect20';
 
 export interface PanelActions {
@@ -18,6 +22,8 @@ const KEYS: Record<string, keyof PanelActions | ['mode', 'translate' | 'rotate' 
   w: ['mode', 'translate'], e: ['mode', 'rotate'], s: ['mode', 'scale'],
 };
 
+export type AreaName = 'scene' | 'body' | 'avatar' | 'face' | 'physics' | 'record';
+
 export class Panel {
   readonly root: HTMLElement;
   readonly fileInput: HTMLInputElement;
@@ -36,26 +42,36 @@ export class Panel {
     this.root.innerHTML = `
       <h1>Kinetre studio</h1>
       <div id="status">connecting…</div>
-      <div class="row">
-        <button id="camera" title="C">Camera</button>
-        <button id="voice" title="V">Voice</button>
-        <button id="sample" title="M">Sample motion</button>
-      </div>
-      <div class="row">
-        <button id="possess" title="P or say “possess”">Possess</button>
-        <button id="release" title="R or say “release”">Release</button>
-        <select id="subset" title="which joints drive the mesh"></select>
-      </div>
-      <div class="row">
-        <button id="fit" title="F: scale the mesh to your height and stand it where you stand">Fit to me</button>
-        <button id="mode-translate" title="W">Move</button>
-        <button id="mode-rotate" title="E">Rotate</button>
-        <button id="mode-scale" title="S">Scale</button>
-      </div>
-      <div class="row">
-        <label class="file">Load mesh… <input type="file" id="file"></label>
-        <button id="record" title="Space">Record</button>
-      </div>
+      <section class="area" id="area-scene"><h2>Scene</h2>
+        <div class="row">
+          <label class="file">Load mesh… <input type="file" id="file"></label>
+          <button id="sample" title="M">Sample motion</button>
+        </div>
+        <div class="row">
+          <button id="fit" title="F: scale the mesh to your height and stand it where you stand">Fit to me</button>
+          <button id="mode-translate" title="W">Move</button>
+          <button id="mode-rotate" title="E">Rotate</button>
+          <button id="mode-scale" title="S">Scale</button>
+        </div>
+      </section>
+      <section class="area" id="area-body"><h2>Body</h2>
+        <div class="row">
+          <button id="camera" title="C">Camera</button>
+          <button id="voice" title="V">Voice</button>
+        </div>
+        <div class="row" id="body-drive" hidden>
+          <button id="possess" title="P or say “possess”">Possess</button>
+          <button id="release" title="R or say “release”">Release</button>
+          <select id="subset" title="which joints drive the mesh"></select>
+        </div>
+      </section>
+      <section class="area" id="area-avatar"><h2>Avatar</h2></section>
+      <section class="area" id="area-face"><h2>Face</h2></section>
+      <section class="area" id="area-physics"><h2>Physics</h2></section>
+      <section class="area" id="area-record"><h2>Record</h2>
+        <div class="row"><button id="record" title="Space">Record</button></div>
+        <div id="downloads" hidden></div>
+      </section>
       <div id="progress-row" hidden><progress id="progress" max="1" value="0"></progress> <span id="progress-label"></span></div>
       <div id="downloads"></div>
       <div id="message" role="status"></div>
@@ -93,6 +109,16 @@ export class Panel {
     });
   }
 
+  /** The panel area for one activity's controls. */
+  area(name: AreaName): HTMLElement {
+    return this.root.querySelector(`#area-${name}`) as HTMLElement;
+  }
+
+  /** Possession's controls, shown while this page's camera can give a body to possess with. */
+  showDriving(shown: boolean): void {
+    (this.root.querySelector('#body-drive') as HTMLElement).hidden = !shown;
+  }
+
   get subset(): string | null {
     return this.subsetSelect.value === 'whole body' ? null : this.subsetSelect.value;
   }
@@ -125,6 +151,7 @@ export class Panel {
   }
 
   setDownloads(links: { label: string; href: string; file: string }[]): void {
+    this.downloads.hidden = links.length === 0;
     this.downloads.replaceChildren(...links.map((l) => {
       const a = document.createElement('a');
       a.href = l.href;

@@ -1,0 +1,93 @@
+// This page's capture: camera → landmark worker → people with stable ids → the followed person as a
+// Kinect 20 skeleton, handed to the page for its skeleton channel. Detection runs in a worker; the loop
+// offers it the camera's newest frame whenever it is idle, so the page never waits on it.
+import type { Camera } from '../capture/Camera';
+import type { Detection } from '../capture/detection';
+import { KinectMapper } from '../capture/KinectMapper';
+import { LandmarkTracker } from '../capture/LandmarkTracker';
+import { PersonTracks } from '../capture/PersonTracks';
+import type { Vec3 } from '../net/protocol';
+
+/** One skeleton frame of the followed person: Kinect 20 joints in metres (null rows untracked). */
+export interface UserFrame {
+  positions: (Vec3 | null)[];
+  tracked: boolean[];
+}
+
+/** What the capture loop tells the page. */
+export interface CaptureHost {
+  say(text: string, error?: boolean): void;
+  /** The camera started (true) or stopped. */
+  running(on: boolean): void;
+  /** The followed person's frame, or null when nobody is in view (the page then holds the pose). */
+  user(frame: UserFrame | null): void;
+}
+
+export class CaptureLoop {
+  readonly tracker: LandmarkTracker;
+  readonly tracks = new PersonTracks();
+  readonly mapper = new KinectMapper();
+  /** Ids of the people in this camera's view (the lowest is the one this page's channel follows). */
+  people: number[] = [];
+  trackedJoints = 0;
+  trackingLost = false;
+
+  constructor(readonly camera: Camera, private readonly host: CaptureHost) {
+    const query = new URLSearchParams(location.search);
+    this.tracker = new LandmarkTracker({
+      wasm: new URL('mediapipe/tasks-vision/', document.baseURI).href,
+      models: new URL('models/', document.baseURI).href,
+      delegate: (query.get('delegate')?.toUpperCase() as 'CPU' | 'GPU' | null) ?? 'auto',
+      numPoses: 4,
+      features: { hands: !query.has('nohands'), face: !query.has('noface') },
+    });
+  }
+
+  async toggle(): Promise<void> {
+    if (this.camera.running) {
+      this.camera.stop();
+      this.tracks.forget();
+      this.people = [];
+      this.host.running(false);
+      return;
+    }
+    try {
+      this.host.say('starting the camera and the pose tracker…');
+      await this.camera.start();
+      await this.tracker.init();
+      this.host.running(true);
+      this.host.say('step back until your whole body is in view, then “Fit to me” and “Possess”');
+      void this.loop();
+    } catch (err) {
+      this.camera.stop();
+      this.host.say(`camera: ${(err as Error).message}`, true);
+    }
+  }
+
+  private async loop(): Promise<void> {
+    this.tracker.onDetection = (d) => this.onDetection(d);
+    while (this.camera.running) {
+      await this.tracker.offer(this.camera.video);
+      await new Promise((resolve) => setTimeout(resolve, 5));
+    }
+  }
+
+  private onDetection(d: Detection): void {
+    if (!this.camera.running) return;
+    const ids = this.tracks.update(d.poses, d.width / d.height, d.t);
+    this.people = [...ids].sort((a, b) => a - b);
+    // this page's channel follows the person tracked longest (the lowest id in view)
+    const first = ids.indexOf(this.people[0]);
+    const pose = first >= 0 ? d.poses[first] : null;
+    if (pose) {
+      const frame = this.mapper.map(pose.world, pose.image);
+      this.trackedJoints = frame.tracked.filter(Boolean).length;
+      this.trackingLost = false;
+      this.host.user(frame);
+    } else {
+      this.trackingLost = true;
+      this.trackedJoints = 0;
+      this.host.user(null);
+    }
+  }
+}
