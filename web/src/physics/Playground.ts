@@ -1,7 +1,8 @@
-// Physics play in the studio: the possessed mesh's sphere proxies in a Rapier world with a scene
-// preset (box tower, dodgeball, ground only), stepped at a fixed 1/60 s behind the render loop; reset by
-// button, key X or the voice command "reset"; the proxies shown on request (key O); and the last recorded
-// take replayed through the physics deterministically into a WebM at the take's own frame rate.
+// Physics play in the studio (KinÊtre paper, "Physics-based Interactions"): the possessed mesh's sphere
+// proxies in a Rapier world with a scene preset (box tower, dodgeball, ground only), stepped at a fixed
+// 1/60 s behind the render loop; reset by button, key X or the voice command "reset"; the proxies shown on request
+// (key O); and the last recorded take replayed through the physics deterministically into a WebM at the
+// take's own frame rate.
 import type { MeshData } from '../scene/MeshPayload';
 import type { SkinnedGraphMesh } from '../scene/SkinnedGraphMesh';
 import type { Viewport } from '../scene/Viewport';
