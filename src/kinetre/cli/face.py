@@ -30,8 +30,11 @@ def cmd_face(args) -> int:
     os.environ.setdefault("GLOG_minloglevel", "2")
     caricature = _caricature(args)
     take = face_take(args.input, args.landmarks, max_frames=args.max_frames, turn=args.turn)
-    write_face_gltf(args.output, take.frames, take.image, take.mime, take.fps, caricature)
-    print(f"wrote {args.output}: {len(take.frames)} frame(s) at {take.fps:g} fps, a face in {take.tracked}")
+    write_face_gltf(args.output, take.frames, take.image, take.mime, take.fps, caricature,
+                    blendshapes=take.blendshapes, blendshape_names=take.blendshape_names)
+    shapes = f", {len(take.blendshape_names)} blendshapes a frame" if take.blendshapes is not None else ""
+    print(f"wrote {args.output}: {len(take.frames)} frame(s) at {take.fps:g} fps, a face in {take.tracked}"
+          f"{shapes}")
     return 0
 
 

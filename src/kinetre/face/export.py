@@ -8,7 +8,12 @@
 * a video adds one morph target per later frame (frame k − frame 0) and one animation whose weights
   channel is one-hot per key with LINEAR interpolation: between two keys the player blends the two
   frames' shapes, which is exactly linear interpolation of vertex positions. Morph-weight animation is
-  what three.js, Blender and Babylon all play.
+  what three.js, Blender and Babylon all play;
+* the tracker's blendshapes, when given, ride along in the mesh's `extras.blendshapes`:
+  `{"names": [52 names], "weights": [[52 weights] per frame]}`, row k for frame k (time k / fps, the
+  animation's key k). They are data, not morph targets: this mesh's shapes are the rebuilt frames
+  themselves (Algorithm 2), it has no ARKit-named targets for them to weigh. three.js puts them in the
+  mesh's `userData`; an ARKit-rigged avatar can play them (`kinetre avatar` plays a take's).
 """
 from __future__ import annotations
 
@@ -25,8 +30,10 @@ from .template import load_template
 
 
 def write_face_gltf(path, frames: list[FaceFrame], image: bytes, mime: str, fps: float,
-                    caricature: np.ndarray | None = None, name: str = "face") -> None:
-    """Write `frames` (reconstructed without morphs) as .glb/.gltf with `image` (encoded JPEG/PNG bytes)."""
+                    caricature: np.ndarray | None = None, name: str = "face",
+                    blendshapes: np.ndarray | None = None, blendshape_names: tuple[str, ...] = ()) -> None:
+    """Write `frames` (reconstructed without morphs) as .glb/.gltf with `image` (encoded JPEG/PNG bytes);
+    `blendshapes` (len(frames), len(blendshape_names)) weights per frame, kept in the mesh's extras."""
     path = Path(path)
     if path.suffix.lower() not in (".glb", ".gltf"):
         raise ExportError(f"{path}: a glTF file must end in .glb or .gltf")
@@ -35,6 +42,14 @@ def write_face_gltf(path, frames: list[FaceFrame], image: bytes, mime: str, fps:
     if not fps > 0:
         raise ExportError(f"{path}: fps must be positive, got {fps}")
     caricature = np.zeros(len(NAMES)) if caricature is None else np.asarray(caricature, dtype=float)
+    extras = {"targetNames": None}
+    if blendshapes is not None:
+        blendshapes = np.asarray(blendshapes, dtype=float)
+        if blendshapes.shape != (len(frames), len(blendshape_names)) or not np.isfinite(blendshapes).all():
+            raise ExportError(f"{path}: blendshapes must be {len(frames)} frames of {len(blendshape_names)} "
+                              f"finite weights, got shape {blendshapes.shape}")
+        extras["blendshapes"] = {"names": list(blendshape_names),
+                                 "weights": np.round(blendshapes, 4).tolist()}
     template = load_template()
     base = frames[0].vertices.astype(np.float32)
     doc = gl.GLTF2(asset=gl.Asset(generator="kinetre face", version="2.0"), scene=0,
@@ -51,11 +66,11 @@ def write_face_gltf(path, frames: list[FaceFrame], image: bytes, mime: str, fps:
     deltas = [CM * d @ rotation.T for d in morph_targets()] + [f.vertices - frames[0].vertices for f in frames[1:]]
     targets = [{"POSITION": append_accessor(doc, blob, d.astype(np.float32), gl.VEC3, gl.FLOAT, minmax=True,
                                     target=vertex)} for d in deltas]
-    names = list(NAMES) + [f"frame {k}" for k in range(1, len(frames))]
+    extras["targetNames"] = list(NAMES) + [f"frame {k}" for k in range(1, len(frames))]
     doc.meshes = [gl.Mesh(name=name, primitives=[gl.Primitive(attributes=attrs, indices=indices, material=0,
                                                               targets=targets)],
                           weights=[float(w) for w in caricature] + [0.0] * (len(frames) - 1),
-                          extras={"targetNames": names})]
+                          extras=extras)]
     blob.extend(b"\0" * (-len(blob) % 4))
     doc.bufferViews.append(gl.BufferView(buffer=0, byteOffset=len(blob), byteLength=len(image)))
     blob.extend(image)

@@ -1,8 +1,11 @@
-"""Face landmarks: MediaPipe Face Mesh on images and video, and landmark files (the annotation tool's).
+"""Face landmarks: MediaPipe's FaceLandmarker on images and video, and landmark files (the annotation tool's).
 
-MediaPipe (`mp.solutions.face_mesh.FaceMesh` of the 0.10.14 wheel, fully offline) gives 468 landmarks
-in normalised image coordinates with a relative depth z (same scale as x); they are returned in pixels,
-(x · width, y · height, z · width).
+The tracker is the Tasks FaceLandmarker of mediapipe 0.10.14 with the studio page's `face_landmarker.task`
+(`kinetre.motion.landmarkers`, fully offline): IMAGE mode for photos, VIDEO mode for a video's frames. Of
+its 478 landmarks the first 468 are Face Mesh's, on the canonical face mesh's vertices (the template); the
+10 iris points after them are dropped, since the template has no vertex for them. Landmarks are returned in
+pixels, (x · width, y · height, z · width), with MediaPipe's relative depth z on the scale of x. Each
+tracked face also carries FaceLandmarker's 52 blendshapes (`kinetre.skeleton.mediapipe.BLENDSHAPES`).
 
 A landmark file is JSON written by the studio's /annotate page (or `write_landmarks`):
 
@@ -16,11 +19,13 @@ flip). Pixels, y down.
 from __future__ import annotations
 
 import json
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
 from ..errors import BadFaceError
+from ..motion.landmarkers import Landmarkers
 from .template import load_template
 
 FORMAT = "kinetre-face-landmarks"
@@ -66,31 +71,54 @@ def read_landmarks(path, *, flipped: bool = False) -> tuple[np.ndarray, int, int
     return points, width, height
 
 
+@dataclass(frozen=True, eq=False)
+class TrackedFace:
+    """One tracked face: landmarks (468, 3) in pixels (x, y, z · width) and blendshapes (52,) weights in
+    [0, 1], named `kinetre.skeleton.mediapipe.BLENDSHAPES`."""
+
+    landmarks: np.ndarray
+    blendshapes: np.ndarray
+
+
 class FaceTracker:
-    """MediaPipe Face Mesh over images (`static_image=True`) or the frames of one video."""
+    """The most prominent face in photos (`static_image=True`: IMAGE mode) or in the frames of one video
+    (VIDEO mode, which follows the face from frame to frame).
+
+    Raises BadModelError when `face_landmarker.task` is missing or corrupted, BadMotionError without
+    MediaPipe.
+    """
 
     def __init__(self, static_image: bool = False):
-        try:
-            import mediapipe as mp
-        except ImportError:
-            raise BadFaceError("face tracking needs MediaPipe: pip install 'kinetre[capture]' "
-                                 "(mediapipe==0.10.14)") from None
-        self._mesh = mp.solutions.face_mesh.FaceMesh(static_image_mode=static_image, max_num_faces=1,
-                                                     refine_landmarks=False, min_detection_confidence=0.5,
-                                                     min_tracking_confidence=0.5)
+        self._marks = Landmarkers(people=1, hands=False, face=True, video=not static_image, tiles=False,
+                                  bodies=False)
+        self._last_ms = -1
 
     def __enter__(self):
         return self
 
     def __exit__(self, *exc):
-        self._mesh.close()
+        self.close()
 
-    def track(self, bgr: np.ndarray) -> np.ndarray | None:
-        """(468, 3) landmarks in pixels for a BGR uint8 image, or None when no face is found."""
+    def close(self) -> None:
+        self._marks.close()
+
+    def face(self, bgr: np.ndarray, t: float | None = None) -> TrackedFace | None:
+        """The face in a BGR uint8 image, or None when none is found. `t` is the frame's time in seconds
+        (video; default: 1/30 s after the previous frame)."""
         import cv2
+        ms = self._last_ms + 33 if t is None else int(round(1000 * t))
+        ms = max(ms, self._last_ms + 1)           # VIDEO mode wants strictly increasing times
+        self._last_ms = ms
         h, w = bgr.shape[:2]
-        result = self._mesh.process(cv2.cvtColor(bgr, cv2.COLOR_BGR2RGB))
-        if not result.multi_face_landmarks:
+        _, _, faces = self._marks.detect(cv2.cvtColor(bgr, cv2.COLOR_BGR2RGB), ms)
+        if not faces:
             return None
-        lm = result.multi_face_landmarks[0].landmark
-        return np.array([[p.x * w, p.y * h, p.z * w] for p in lm[: load_template().size]])
+        n = load_template().size
+        found = faces[0]
+        landmarks = np.c_[found.image[:n] * [w, h], found.depth[:n] * w]
+        return TrackedFace(landmarks, found.blendshapes)
+
+    def track(self, bgr: np.ndarray, t: float | None = None) -> np.ndarray | None:
+        """(468, 3) landmarks in pixels for a BGR uint8 image, or None when no face is found."""
+        found = self.face(bgr, t)
+        return None if found is None else found.landmarks

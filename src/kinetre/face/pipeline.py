@@ -1,4 +1,8 @@
-"""`kinetre face`: an image or a video → landmarks per frame → Algorithm 2 → frames ready to export."""
+"""`kinetre face`: an image or a video → landmarks per frame → Algorithm 2 → frames ready to export.
+
+A tracked face also gives FaceLandmarker's 52 blendshapes per frame; the take keeps them beside the frames
+(the expression the puppet's shape came from), for the export to carry along.
+"""
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -7,6 +11,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import BadFaceError
+from ..skeleton.mediapipe import BLENDSHAPES
 from .landmarks import FaceTracker, read_landmarks
 from .reconstruct import FaceFrame, reconstruct
 from .template import load_template
@@ -17,13 +22,20 @@ IMAGE_EXTS = (".jpg", ".jpeg", ".png", ".bmp", ".webp", ".tif", ".tiff")
 @dataclass(frozen=True)
 class FaceTake:
     """Reconstructed frames, the first frame's encoded image (the texture), its MIME type, the frame rate
-    and how many frames had a face of their own (the others hold the last good one)."""
+    and how many frames had a face of their own (the others hold the last good one); blendshapes
+    (len(frames), 52) the tracker's weights of the face each frame was rebuilt from (names
+    `blendshape_names`), None when the landmarks did not come from the tracker."""
 
     frames: list[FaceFrame]
     image: bytes
     mime: str
     fps: float
     tracked: int
+    blendshapes: np.ndarray | None = None
+
+    @property
+    def blendshape_names(self) -> tuple[str, ...]:
+        return BLENDSHAPES if self.blendshapes is not None else ()
 
 
 def _encode(bgr: np.ndarray, path: Path) -> tuple[bytes, str]:
@@ -42,18 +54,23 @@ def face_from_image(path, landmark_file=None, *, turn: bool = False) -> FaceTake
     if bgr is None:
         raise BadFaceError(f"{path}: not a readable image")
     h, w = bgr.shape[:2]
+    blendshapes = None
     if landmark_file is not None:
         landmarks, lw, lh = read_landmarks(landmark_file)
         if (lw, lh) != (w, h):
             raise BadFaceError(f"{landmark_file}: made for a {lw}x{lh} image, but {path} is {w}x{h}")
     else:
         with FaceTracker(static_image=True) as tracker:
-            landmarks = tracker.track(bgr)
-        if landmarks is None:
+            found = tracker.face(bgr)
+        if found is None:
             raise BadFaceError(f"{path}: no face found; annotate it on the studio's /annotate page and pass "
                                f"--landmarks FILE")
-    frame = reconstruct(landmarks, w, h, turn=turn)
-    return FaceTake([frame], *_encode(bgr, path), fps=1.0, tracked=1)
+        landmarks, blendshapes = found.landmarks, found.blendshapes[None]
+    try:
+        frame = reconstruct(landmarks, w, h, turn=turn)
+    except BadFaceError as e:
+        raise BadFaceError(f"{path}: {e}") from None
+    return FaceTake([frame], *_encode(bgr, path), fps=1.0, tracked=1, blendshapes=blendshapes)
 
 
 def face_from_video(path, *, max_frames: int | None = None, turn: bool = False) -> FaceTake:
@@ -66,24 +83,26 @@ def face_from_video(path, *, max_frames: int | None = None, turn: bool = False) 
     if not cap.isOpened():
         raise BadFaceError(f"{path}: not a readable video")
     fps = cap.get(cv2.CAP_PROP_FPS) or 30.0
-    frames, first, last, tracked, read = [], None, None, 0, 0
+    frames, shapes, first, last, last_shapes, tracked, read = [], [], None, None, None, 0, 0
     try:
         with FaceTracker(static_image=False) as tracker:
             while max_frames is None or read < max_frames:
                 ok, bgr = cap.read()
                 if not ok:
                     break
+                found = tracker.face(bgr, read / fps)
                 read += 1
-                landmarks = tracker.track(bgr)
-                if landmarks is not None:
+                if found is not None:
                     try:
-                        last = reconstruct(landmarks, bgr.shape[1], bgr.shape[0], turn=turn)
+                        last = reconstruct(found.landmarks, bgr.shape[1], bgr.shape[0], turn=turn)
+                        last_shapes = found.blendshapes
                         tracked += 1
                         first = bgr if first is None else first
                     except BadFaceError:
                         pass              # tracking loss keeps the last good face
                 if last is not None:
                     frames.append(last)
+                    shapes.append(last_shapes)
     finally:
         cap.release()
     if not read:
@@ -91,7 +110,7 @@ def face_from_video(path, *, max_frames: int | None = None, turn: bool = False) 
     if first is None:
         raise BadFaceError(f"{path}: no face found in any of its {read} frames")
     # the texture is the first frame with a face: the exported mesh starts there
-    return FaceTake(frames, *_encode(first, path), fps=float(fps), tracked=tracked)
+    return FaceTake(frames, *_encode(first, path), fps=float(fps), tracked=tracked, blendshapes=np.array(shapes))
 
 
 def face_take(path, landmark_file=None, *, max_frames: int | None = None, turn: bool = False) -> FaceTake:

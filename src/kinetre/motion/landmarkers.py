@@ -2,7 +2,7 @@
 
 The `.task` models are the studio page's (`kinetre.motion.models.model_path`), run through mediapipe
 0.10.14's Tasks API: PoseLandmarker (up to `people` bodies), HandLandmarker (two hands a person) and
-FaceLandmarker with its 52 blendshapes. In VIDEO mode each tile keeps its own landmarkers, since MediaPipe
+FaceLandmarker with its 52 blendshapes (also on its own, for the face puppet). In VIDEO mode each tile keeps its own landmarkers, since MediaPipe
 follows what it found in the previous frame of the same stream. Detections from all tiles are brought to
 whole-image coordinates and merged (`kinetre.motion.tiles`).
 """
@@ -40,9 +40,12 @@ class Hand:
 
 @dataclass(frozen=True, eq=False)
 class Face:
-    """One face: image (478, 2) normalised to the whole image; blendshapes (52,) weights named `BLENDSHAPES`."""
+    """One face: image (478, 2) normalised to the whole image (the first 468 on Face Mesh's canonical
+    topology, then 10 iris points); depth (478,) MediaPipe's relative depth, smaller towards the camera, in
+    units of the whole image's width (the scale of image x); blendshapes (52,) weights named `BLENDSHAPES`."""
 
     image: np.ndarray
+    depth: np.ndarray
     blendshapes: np.ndarray
 
 
@@ -51,7 +54,7 @@ def _tasks():
         import mediapipe as mp
         from mediapipe.tasks.python import BaseOptions, vision
     except ImportError:
-        raise BadMotionError("video capture needs MediaPipe: pip install 'kinetre[capture]' "
+        raise BadMotionError("tracking needs MediaPipe: pip install 'kinetre[capture]' "
                              "(mediapipe==0.10.14)") from None
     return mp, BaseOptions, vision
 
@@ -61,15 +64,17 @@ class Landmarkers:
 
     people : most bodies (and faces) looked for; hands : look for hands (two a person); face : look for faces;
     video : frames of one stream (VIDEO mode, timestamps increasing) rather than unrelated photos;
-    tiles : also search overlapping square crops (`square_tiles`), for people small in a wide frame.
+    tiles : also search overlapping square crops (`square_tiles`), for people small in a wide frame;
+    bodies : look for bodies (False: faces or hands alone, without running the pose model).
 
     Raises BadModelError when a model file is missing or corrupted (naming `make models`).
     """
 
     def __init__(self, people: int = 4, hands: bool = True, face: bool = True, video: bool = True,
-                 tiles: bool = True):
+                 tiles: bool = True, bodies: bool = True):
         self.people, self.hands, self.face, self.video, self.tiles = int(people), hands, face, video, tiles
-        self._paths = {"pose": model_path("pose_landmarker_full.task"),
+        self.bodies = bodies
+        self._paths = {"pose": model_path("pose_landmarker_full.task") if bodies else None,
                        "hand": model_path("hand_landmarker.task") if hands else None,
                        "face": model_path("face_landmarker.task") if face else None}
         self._size = None
@@ -93,8 +98,10 @@ class Landmarkers:
 
         def base(kind):
             return BaseOptions(model_asset_path=str(self._paths[kind]))
-        out = {"pose": vision.PoseLandmarker.create_from_options(vision.PoseLandmarkerOptions(
-            base_options=base("pose"), running_mode=mode, num_poses=self.people))}
+        out = {}
+        if self.bodies:
+            out["pose"] = vision.PoseLandmarker.create_from_options(vision.PoseLandmarkerOptions(
+                base_options=base("pose"), running_mode=mode, num_poses=self.people))
         if self.hands:
             out["hand"] = vision.HandLandmarker.create_from_options(vision.HandLandmarkerOptions(
                 base_options=base("hand"), running_mode=mode, num_hands=2 * self.people))
@@ -119,11 +126,12 @@ class Landmarkers:
             crop = np.ascontiguousarray(rgb[tile.y:tile.y + tile.height, tile.x:tile.x + tile.width])
             image = mp.Image(image_format=mp.ImageFormat.SRGB, data=crop)
             run = (lambda m: m.detect_for_video(image, int(t_ms))) if self.video else (lambda m: m.detect(image))
-            pose = run(marks["pose"])
-            for marks_2d, marks_3d in zip(pose.pose_landmarks, pose.pose_world_landmarks):
-                bodies.append(Body(np.array([[p.x, p.y, p.z] for p in marks_3d]),
-                                   tile.to_image(np.array([[p.x, p.y] for p in marks_2d]), w, h),
-                                   np.array([p.visibility for p in marks_2d])))
+            if "pose" in marks:
+                pose = run(marks["pose"])
+                for marks_2d, marks_3d in zip(pose.pose_landmarks, pose.pose_world_landmarks):
+                    bodies.append(Body(np.array([[p.x, p.y, p.z] for p in marks_3d]),
+                                       tile.to_image(np.array([[p.x, p.y] for p in marks_2d]), w, h),
+                                       np.array([p.visibility for p in marks_2d])))
             if "hand" in marks:
                 found = run(marks["hand"])
                 for marks_2d, marks_3d, side in zip(found.hand_landmarks, found.hand_world_landmarks,
@@ -137,7 +145,9 @@ class Landmarkers:
                     weights = np.zeros(len(BLENDSHAPES))
                     for c in shapes:
                         weights[BLENDSHAPES.index(c.category_name)] = c.score
-                    faces.append(Face(tile.to_image(np.array([[p.x, p.y] for p in marks_2d]), w, h), weights))
+                    # z is normalised like x, by the tile's width: rescale it to the whole image's
+                    faces.append(Face(tile.to_image(np.array([[p.x, p.y] for p in marks_2d]), w, h),
+                                      np.array([p.z for p in marks_2d]) * tile.width / w, weights))
         px = np.array([w, h], dtype=np.float64)
         bodies = [bodies[i] for i in distinct([b.image * px for b in bodies],
                                               np.array([b.visibility.mean() for b in bodies]))][:self.people]
