@@ -78,7 +78,7 @@ def test_cli_errors_are_one_line(tmp_path, capsys, data_dir):
     assert main(["face", str(blank), "-o", str(tmp_path / "x.glb")]) == 2
     assert "no face found" in capsys.readouterr().err
     assert main(["face", str(tmp_path / "nope.jpg"), "-o", str(tmp_path / "x.glb")]) == 2
-    assert "not a readable image" in capsys.readouterr().err
+    assert "nope.jpg: no such image" in capsys.readouterr().err
     photo = str(data_dir / "images" / "face" / "face_frontal_portrait.jpg")
     assert main(["face", photo, "-o", str(tmp_path / "x.obj")]) == 2
     assert ".glb" in capsys.readouterr().err
@@ -112,3 +112,17 @@ def test_video_without_a_face_and_max_frames(tmp_path, capsys, face_video):
     out = tmp_path / "short.glb"
     assert main(["face", str(face_video), "-o", str(out), "--max-frames", "5"]) == 0
     assert "5 frame(s)" in capsys.readouterr().out
+
+
+def test_blendshapes_must_match_the_frames(photos, tmp_path):
+    from kinetre.errors import ExportError
+    from kinetre.face.export import write_face_gltf
+    from kinetre.skeleton.mediapipe import BLENDSHAPES
+    image, lm = photos["face_frontal_portrait.jpg"]
+    frames = [reconstruct(lm, image.shape[1], image.shape[0])]
+    jpeg = cv2.imencode(".jpg", image)[1].tobytes()
+    for bad in (np.zeros((2, 52)), np.full((1, 52), np.nan)):
+        with pytest.raises(ExportError, match="x.glb: blendshapes must be 1 frames of 52 finite weights"):
+            write_face_gltf(tmp_path / "x.glb", frames, jpeg, "image/jpeg", 1.0, blendshapes=bad,
+                            blendshape_names=BLENDSHAPES)
+    assert not (tmp_path / "x.glb").exists()

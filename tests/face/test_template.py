@@ -1,4 +1,4 @@
-"""The shipped template is MediaPipe's canonical face mesh, as read from the npm package's assets."""
+"""The shipped template is MediaPipe's canonical face mesh, as read from the face_landmarker.task bundle."""
 from __future__ import annotations
 
 import json
@@ -7,10 +7,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from kinetre.face.assets import extract, fields
+from kinetre.face.assets import BadAssetError, extract, fields, main
 from kinetre.face.template import load_template
-
-PACKAGE = Path(__file__).resolve().parents[2] / "web" / "node_modules" / "@mediapipe" / "face_mesh"
+from kinetre.motion.models import model_path
 
 
 def test_template_shape_and_topology():
@@ -35,11 +34,31 @@ def test_wire_reader_on_a_hand_made_message():
     assert np.frombuffer(got[1][2], "<f4")[0] == 1.5
 
 
-@pytest.mark.skipif(not PACKAGE.is_dir(), reason="web/node_modules not installed (make setup installs it)")
-def test_shipped_template_matches_the_npm_asset():
+def test_shipped_template_is_the_canonical_mesh_of_the_face_model(tmp_path, capsys):
     shipped = json.loads((Path(__file__).resolve().parents[2] / "src" / "kinetre" / "data" /
                           "face_template.json").read_text())
-    fresh = extract(PACKAGE)
-    assert fresh["triangles"] == shipped["triangles"] and fresh["mirror"] == shipped["mirror"]
-    for key in ("vertices", "uvs", "procrustes_weights"):
-        assert np.allclose(fresh[key], shipped[key], atol=1e-6), key
+    out = tmp_path / "template.json"
+    assert main(["-o", str(out)]) == 0
+    fresh = json.loads(out.read_text())
+    assert fresh["source"].startswith("face_landmarker.task (sha256 64184e22")
+    for key in ("triangles", "mirror", "chin", "nose_tip", "vertices", "uvs", "procrustes_weights"):
+        assert fresh[key] == shipped[key], key
+    assert extract(model_path("face_landmarker.task"))["vertices"] == shipped["vertices"]
+
+
+def test_bad_model_bundles_name_the_file(tmp_path, capsys):
+    import zipfile
+    with pytest.raises(BadAssetError, match="missing.task: no such model file"):
+        extract(tmp_path / "missing.task")
+    junk = tmp_path / "junk.task"
+    junk.write_bytes(b"not a zip")
+    with pytest.raises(BadAssetError, match="junk.task: not a .task model bundle"):
+        extract(junk)
+    empty = tmp_path / "empty.task"
+    with zipfile.ZipFile(empty, "w") as z:
+        z.writestr("face_detector.tflite", b"")
+    with pytest.raises(BadAssetError, match="empty.task: the model bundle holds no geometry_pipeline"):
+        extract(empty)
+    assert main(["--task", str(junk), "-o", str(tmp_path / "t.json")]) == 2
+    err = capsys.readouterr().err
+    assert "junk.task" in err and err.count("\n") == 1 and not (tmp_path / "t.json").exists()

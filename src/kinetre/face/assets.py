@@ -1,8 +1,7 @@
-"""The canonical face mesh, read out of @mediapipe/face_mesh's packed assets (SPEC §6.2).
+"""The canonical face mesh, read out of MediaPipe's `face_landmarker.task` model bundle.
 
-The npm package ships its files as one Emscripten bundle, `face_mesh_solution_packed_assets.data`, whose
-table of contents (file name, start, end) sits in `face_mesh_solution_packed_assets_loader.js`. One of the
-files, `geometry_pipeline_metadata_landmarks.binarypb`, is a `GeometryPipelineMetadata` protobuf
+The `.task` file is a zip archive of the FaceLandmarker's TFLite models and one
+`geometry_pipeline_metadata_landmarks.binarypb`, a `GeometryPipelineMetadata` protobuf
 (mediapipe/modules/face_geometry/protos/geometry_pipeline_metadata.proto):
 
     1 canonical_mesh             Mesh3d { 1 vertex_type enum (0 = VERTEX_PT: x y z u v),
@@ -11,44 +10,48 @@ files, `geometry_pipeline_metadata_landmarks.binarypb`, is a `GeometryPipelineMe
     2 procrustes_landmark_basis  repeated { 1 landmark_id uint32, 2 weight float }
     3 input_source               enum
 
-(repeated scalars may come packed or one per field; both are read).
+(repeated scalars may come packed or one per field; both are read). The same file, byte for byte, is in
+the legacy Face Mesh solution's assets.
 
 The wire format is read by hand below (varints, fixed32 and length-delimited fields are all it uses).
-Regenerate the shipped template with
+Regenerate the shipped template with (default model: `kinetre.motion.models.model_path`)
 
-    python -m kinetre.face.assets web/node_modules/@mediapipe/face_mesh -o src/kinetre/data/face_template.json
+    python -m kinetre.face.assets -o src/kinetre/data/face_template.json [--task face_landmarker.task]
 """
 from __future__ import annotations
 
 import argparse
 import json
-import re
+import sys
+import zipfile
 from pathlib import Path
 
 import numpy as np
 
 from ..errors import KinetreError
+from ..motion.models import model_path, sha256_of
 
+MODEL = "face_landmarker.task"
 METADATA = "geometry_pipeline_metadata_landmarks.binarypb"
 CHIN = 152        # MediaPipe's chin landmark: the lowest vertex on the face's midline (the paper's anchor)
 NOSE_TIP = 1
 
 
 class BadAssetError(KinetreError):
-    """The npm package's assets are missing or do not hold the expected canonical mesh."""
+    """The model bundle is missing or does not hold the expected canonical mesh."""
 
 
-def packed_file(package: Path, name: str = METADATA) -> bytes:
-    """The bytes of one file of the Emscripten bundle in `package` (the @mediapipe/face_mesh folder)."""
-    loader = package / "face_mesh_solution_packed_assets_loader.js"
-    data = package / "face_mesh_solution_packed_assets.data"
-    if not loader.is_file() or not data.is_file():
-        raise BadAssetError(f"{package}: not an @mediapipe/face_mesh package (no packed assets)")
-    pattern = r'"filename":\s*"([^"]*)",\s*"start":\s*(\d+),\s*"end":\s*(\d+)'
-    for filename, start, end in re.findall(pattern, loader.read_text(encoding="utf-8")):
-        if filename.endswith("/" + name):
-            return data.read_bytes()[int(start):int(end)]
-    raise BadAssetError(f"{loader}: no {name} in the bundle's table of contents")
+def bundled_file(task: Path, name: str = METADATA) -> bytes:
+    """The bytes of one file of the `.task` bundle at `task`."""
+    try:
+        with zipfile.ZipFile(task) as bundle:
+            return bundle.read(name)
+    except FileNotFoundError:
+        raise BadAssetError(f"{task}: no such model file") from None
+    except KeyError:
+        raise BadAssetError(f"{task}: the model bundle holds no {name}") from None
+    except (zipfile.BadZipFile, OSError) as e:
+        raise BadAssetError(f"{task}: not a .task model bundle ({e})") from None
 
 
 def _varint(buf: bytes, i: int) -> tuple[int, int]:
@@ -131,12 +134,13 @@ def mirror_permutation(vertices: np.ndarray) -> np.ndarray:
     return perm
 
 
-def extract(package: Path) -> dict:
-    """The template as shipped in src/kinetre/data/face_template.json (plain lists, 6 decimals)."""
-    meta = parse_metadata(packed_file(package))
+def extract(task: Path | None = None) -> dict:
+    """The template as shipped in src/kinetre/data/face_template.json (plain lists, 6 decimals), from the
+    model bundle `task` (default: the verified `face_landmarker.task`)."""
+    task = model_path(MODEL) if task is None else Path(task)
+    meta = parse_metadata(bundled_file(task))
     return {
-        "source": "@mediapipe/face_mesh " + json.loads((package / "package.json").read_text())["version"]
-                  + " face_mesh_solution_packed_assets.data: " + METADATA + " (Apache-2.0)",
+        "source": f"{task.name} (sha256 {sha256_of(task.read_bytes())}): {METADATA} (Apache-2.0)",
         "units": "cm",
         "chin": CHIN,
         "nose_tip": NOSE_TIP,
@@ -148,14 +152,23 @@ def extract(package: Path) -> dict:
     }
 
 
-def main(argv: list[str] | None = None) -> None:
+def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    parser.add_argument("package", type=Path, help="the node_modules/@mediapipe/face_mesh folder")
+    parser.add_argument("--task", type=Path, default=None, help=f"the {MODEL} bundle (default: the verified copy)")
     parser.add_argument("-o", "--output", type=Path, required=True)
     args = parser.parse_args(argv)
-    args.output.write_text(json.dumps(extract(args.package), separators=(",", ":")) + "\n", encoding="utf-8")
+    try:
+        template = extract(args.task)
+        args.output.write_text(json.dumps(template, separators=(",", ":")) + "\n", encoding="utf-8")
+    except KinetreError as e:
+        print(f"error: {e}", file=sys.stderr)
+        return 2
+    except OSError as e:
+        print(f"error: {args.output}: cannot write ({e.strerror})", file=sys.stderr)
+        return 2
     print(f"wrote {args.output}")
+    return 0
 
 
 if __name__ == "__main__":
-    main()
+    sys.exit(main())

@@ -50,6 +50,8 @@ def face_from_image(path, landmark_file=None, *, turn: bool = False) -> FaceTake
     """One photo: MediaPipe's landmarks, or those of `landmark_file` (for faces the tracker misses)."""
     import cv2
     path = Path(path)
+    if not path.is_file():
+        raise BadFaceError(f"{path}: no such image")
     bgr = cv2.imread(str(path), cv2.IMREAD_COLOR)
     if bgr is None:
         raise BadFaceError(f"{path}: not a readable image")
