@@ -1,5 +1,6 @@
-"""Live 3D faces (Algorithm 2 of the avateering paper): MediaPipe Face Mesh landmarks on the canonical
-face mesh, aligned to the frontal template, textured by the camera, anchored at the chin, with caricatures."""
+"""Live 3D faces (Algorithm 2 of the avateering paper): MediaPipe FaceLandmarker's landmarks on the
+canonical face mesh, aligned to the frontal template, textured by the camera, anchored at the chin, with
+caricatures."""
 from .align import Similarity, align
 from .caricature import NAMES as MORPH_NAMES
 from .caricature import PRESETS, morph_targets

@@ -1,6 +1,6 @@
-"""The frontal face template: MediaPipe's canonical face mesh (468 vertices ↔ 468 Face Mesh landmarks).
+"""The frontal face template: MediaPipe's canonical face mesh (468 vertices, one per tracked landmark).
 
-Loaded from `kinetre/data/face_template.json`, extracted from @mediapipe/face_mesh by `kinetre.face.assets`.
+Loaded from `kinetre/data/face_template.json`, extracted from `face_landmarker.task` by `kinetre.face.assets`.
 Frame: centimetres, +x the face's left (image right), +y up, +z out of the face towards the camera.
 """
 from __future__ import annotations

@@ -2,7 +2,8 @@
 
 The `.task` models are the studio page's (`kinetre.motion.models.model_path`), run through mediapipe
 0.10.14's Tasks API: PoseLandmarker (up to `people` bodies), HandLandmarker (two hands a person) and
-FaceLandmarker with its 52 blendshapes (also on its own, for the face puppet). In VIDEO mode each tile keeps its own landmarkers, since MediaPipe
+FaceLandmarker with its 52 blendshapes; faces may also be looked for without bodies (the face puppet's
+tracker, `kinetre.face.landmarks`). In VIDEO mode each tile keeps its own landmarkers, since MediaPipe
 follows what it found in the previous frame of the same stream. Detections from all tiles are brought to
 whole-image coordinates and merged (`kinetre.motion.tiles`).
 """
