@@ -132,3 +132,22 @@ def test_bad_input_gives_one_line_naming_the_file(tmp_path, capsys):
         err = capsys.readouterr().err
         assert message in err and err.count("\n") == 1, err
     assert not (tmp_path / "x.glb").exists()
+
+
+def test_the_face_needs_its_model_and_no_other(data_dir, tmp_path, monkeypatch, capsys):
+    import shutil
+
+    from kinetre.errors import BadModelError
+    from kinetre.motion import models
+    photo = data_dir / "images" / "face" / "face_frontal_portrait.jpg"
+    only_face = tmp_path / "models"
+    only_face.mkdir()
+    shutil.copy(models.model_path("face_landmarker.task"), only_face)
+    monkeypatch.setattr(models, "search_dirs", lambda: (only_face,))
+    assert face_take(photo).blendshapes.shape == (1, 52)          # no body or hand model looked for
+    monkeypatch.setattr(models, "search_dirs", lambda: (tmp_path,))
+    with pytest.raises(BadModelError, match=r"face_landmarker.task: not found .*make models"):
+        face_take(photo)
+    assert main(["face", str(photo), "-o", str(tmp_path / "x.glb")]) == 2
+    err = capsys.readouterr().err
+    assert "face_landmarker.task" in err and err.count("\n") == 1
