@@ -118,9 +118,15 @@ class Landmarkers:
         mp, _, _ = _tasks()
         h, w = rgb.shape[:2]
         if self._size != (w, h):
-            self.close()
             tiles = square_tiles(w, h) if self.tiles else square_tiles(w, h)[:1]
-            self._open = [(tile, self._landmarkers()) for tile in tiles]
+            if self.video or len(tiles) > len(self._open):
+                self.close()      # a stream of another size starts afresh
+                self._open = [(tile, self._landmarkers()) for tile in tiles]
+            else:                 # photos carry no state from one to the next: the landmarkers are reused
+                for _, marks in self._open[len(tiles):]:
+                    for m in marks.values():
+                        m.close()
+                self._open = [(tile, marks) for tile, (_, marks) in zip(tiles, self._open)]
             self._size = (w, h)
         bodies, hands, faces = [], [], []
         for tile, marks in self._open:
