@@ -42,13 +42,13 @@ def write_face_gltf(path, frames: list[FaceFrame], image: bytes, mime: str, fps:
     if not fps > 0:
         raise ExportError(f"{path}: fps must be positive, got {fps}")
     caricature = np.zeros(len(NAMES)) if caricature is None else np.asarray(caricature, dtype=float)
-    extras = {"targetNames": None}
+    shapes = {}
     if blendshapes is not None:
         blendshapes = np.asarray(blendshapes, dtype=float)
         if blendshapes.shape != (len(frames), len(blendshape_names)) or not np.isfinite(blendshapes).all():
             raise ExportError(f"{path}: blendshapes must be {len(frames)} frames of {len(blendshape_names)} "
                               f"finite weights, got shape {blendshapes.shape}")
-        extras["blendshapes"] = {"names": list(blendshape_names),
+        shapes["blendshapes"] = {"names": list(blendshape_names),
                                  "weights": np.round(blendshapes, 4).tolist()}
     template = load_template()
     base = frames[0].vertices.astype(np.float32)
@@ -66,7 +66,7 @@ def write_face_gltf(path, frames: list[FaceFrame], image: bytes, mime: str, fps:
     deltas = [CM * d @ rotation.T for d in morph_targets()] + [f.vertices - frames[0].vertices for f in frames[1:]]
     targets = [{"POSITION": append_accessor(doc, blob, d.astype(np.float32), gl.VEC3, gl.FLOAT, minmax=True,
                                     target=vertex)} for d in deltas]
-    extras["targetNames"] = list(NAMES) + [f"frame {k}" for k in range(1, len(frames))]
+    extras = {"targetNames": list(NAMES) + [f"frame {k}" for k in range(1, len(frames))], **shapes}
     doc.meshes = [gl.Mesh(name=name, primitives=[gl.Primitive(attributes=attrs, indices=indices, material=0,
                                                               targets=targets)],
                           weights=[float(w) for w in caricature] + [0.0] * (len(frames) - 1),
