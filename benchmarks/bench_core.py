@@ -212,8 +212,8 @@ def same_start_gaps(graph, skeletons, designs, subset=None, count=64):
 
 
 def bench_solve_agreement(cases=((256, 2), (256, 1, "right arm")), skip=5):
-    """Energy agreement with the same start (`same_start_gaps`): the default, block Jacobi, the session-11
-    default's stop rule and the exact solve with its default stop, against `EXACT_TIGHT`; median, p95 and
+    """Energy agreement with the same start (`same_start_gaps`): the default, block Jacobi, the
+    "decrease" stop rule and the exact solve with its default stop, against `EXACT_TIGHT`; median, p95 and
     max of the relative gap over the frames after the first `skip`. Two cases by default: the tight
     reference costs up to 30 factorisations a frame (these two took 7 min at load 2.5; 512 nodes ~2× each)."""
     frames, _ = walk_frames()

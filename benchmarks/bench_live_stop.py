@@ -1,4 +1,4 @@
-"""What a live solve's yield costs in pose quality (issue 12): bench_network's live case offline, every frame cut.
+"""What a live solve's yield costs in pose quality: bench_network's live case offline, every frame cut.
 
 Spot stood up and scaled to the walker as the studio's "fit" does, 256 nodes (253 in the graph), two users each
 possessing one leg, the second 7 frames ahead on the CMU walk, twice round the clip (each loop-around is a

@@ -1,4 +1,4 @@
-"""The networked studio under load (issue 12), the embedded hub and NATS side by side, plus a 512-node solve.
+"""The networked studio under load, the embedded hub and NATS side by side, plus a 512-node solve.
 
 Load: 20 capture clients sending Kinect-20 frames at 30 Hz (two of them possess the mesh, left and right
 leg), 100 viewers receiving the node transforms, one scene with a 256-node rig. All 120 WebSocket clients

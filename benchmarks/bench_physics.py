@@ -1,4 +1,5 @@
-"""Physics play (SPEC §4): sphere packing time, and one step of the page's Rapier world.
+"""Physics play (KinÊtre paper, "Physics-based Interactions"): sphere packing time, and one step of the
+page's Rapier world.
 
 Prints JSON lines:
   {"bench": "physics", "what": "pack", ...}   pack_spheres on each shared mesh: the paper's rule and the

@@ -1,4 +1,4 @@
-"""Preprocessing and skinning figures (issue 9): graph + weights of a 2.77M-vertex mesh, CPU skinning of 1M
+"""Preprocessing and skinning figures: graph + weights of a 2.77M-vertex mesh, CPU skinning of 1M
 vertices. `kinetre animate` end to end is in bench_animate.py.
 
 Prints one JSON object per line. CPU seconds (time.process_time) are the figures to compare on a shared

@@ -38,7 +38,8 @@ VOXELS = (0.02, 0.01, 0.006)
 REPEATS = 2  # passes over the 5 frames (a new model each pass)
 DEFAULT = "odometry at 320x240, up to (10, 10) iterations until settled, scored at 160x120"
 DESIGNS = {
-    # issue 10's tracker: odometry iterating at 640x480 (3 at 320x240, 6 at 640x480), scored at 320x240
+    # the tracker before the halved-resolution odometry: iterating at 640x480 (3 at 320x240, 6 at 640x480),
+    # scored at 320x240
     "odometry at 640x480": TrackingParams(odometry_iterations=(0, 3, 6), odometry_tolerance=1e-6,
                                           odometry_width=640, score_width=320),
     "odometry at 320x240, fixed (6, 4) iterations, scored at 160x120":

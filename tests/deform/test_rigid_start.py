@@ -1,4 +1,4 @@
-"""A jump frame's rigid start (issue 12, deform/rigid_start.py): the best rigid motion of the constraint
+"""A jump frame's rigid start (deform/rigid_start.py): the best rigid motion of the constraint
 carriers onto their new targets, offered to the solver as a start kept only when E is lower."""
 import numpy as np
 import pytest

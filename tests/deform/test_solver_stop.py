@@ -1,4 +1,4 @@
-"""A jump frame's exact solve cut short by `stop` (a live solve with a newer frame waiting, issue 12) goes on
+"""A jump frame's exact solve cut short by `stop` (a live solve with a newer frame waiting) goes on
 over the next frames: each frame lowers E, the catch-up stays exact within the jump's budget, and the poses
 rejoin those of the uninterrupted solve."""
 import numpy as np

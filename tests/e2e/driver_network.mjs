@@ -1,4 +1,4 @@
-// The studio page behind a gateway studio whose scene runs in another process (issue 12), in Debian's
+// The studio page behind a gateway studio whose scene runs in another process, in Debian's
 // Chromium: the page says "scene lost" when the scene process dies and recovers when a new one starts.
 //   node driver_network.mjs '{"url": "http://127.0.0.1:PORT/?token=…", "artifacts": "…"}'
 // Prints "READY" once the page shows the mesh (the test then kills the scene), "LOST" once the page

@@ -27,7 +27,7 @@ def reference_skin(mesh: Mesh, graph: DeformationGraph, pose: GraphPose) -> np.n
 
 
 def synthetic_graph(mesh: Mesh, nodes: int, rng: np.random.Generator) -> DeformationGraph:
-    """Nodes on random vertices; 4 nearest nodes per vertex with SPEC §1.4's linear fall-off weights."""
+    """Nodes on random vertices; 4 nearest nodes per vertex with Eq. 2's linear fall-off weights."""
     g = mesh.vertices[rng.choice(len(mesh.vertices), nodes, replace=False)]
     d = np.linalg.norm(mesh.vertices[:, None, :] - g[None], axis=2)
     order = np.argsort(d, axis=1)[:, :5]

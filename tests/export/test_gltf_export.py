@@ -1,4 +1,4 @@
-"""glTF export (SPEC §8): valid per the Khronos validator, and skinned by an independent player it matches
+"""glTF export: valid per the Khronos validator, and skinned by an independent player it matches
 Kinetre's own deformation within 1 % of the bounding-box diagonal at every frame."""
 from __future__ import annotations
 

@@ -1,5 +1,5 @@
 """The pruned node search of `skinning_weights` gives exactly the k+1 nearest nodes under D: the same
-indices and float32 weights, bit for bit, as ranking every node for every vertex (Eq. 2, SPEC §1.4)."""
+indices and float32 weights, bit for bit, as ranking every node for every vertex (Eq. 2)."""
 import numpy as np
 import pytest
 from numba import njit

@@ -1,4 +1,4 @@
-"""Any rig's animation drives any mesh: Fox.glb#Walk walks the shared spot and armadillo (issue 13).
+"""Any rig's animation drives any mesh: Fox.glb#Walk walks the shared spot and armadillo.
 
 The written GLB is skinned by the tests' independent player (tests/export/gltf_player.py) and checked with
 the Khronos validator; the bound on per-frame motion comes from the placed source itself, so a jump is a

@@ -1,4 +1,5 @@
-"""Sphere packing (SPEC §4): every vertex covered, radius 4 × mean edge, deterministic, centres skinned."""
+"""Sphere packing (KinÊtre paper, "Physics-based Interactions"): every vertex covered, radius 4 × mean
+edge, deterministic, centres skinned."""
 import numpy as np
 import pytest
 from scipy.spatial import cKDTree

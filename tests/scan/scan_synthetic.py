@@ -91,7 +91,7 @@ def _box(size, centre) -> trimesh.Trimesh:
 
 
 def lamp() -> list[trimesh.Trimesh]:
-    """The desk lamp of issue 10: 33 x 56 x 20 cm. Base disc r 10 cm, arms r 1.2 and 1 cm, two joint spheres,
+    """A desk lamp: 33 x 56 x 20 cm. Base disc r 10 cm, arms r 1.2 and 1 cm, two joint spheres,
     and a cone shade hanging from the upper joint (the arm reaches it from above, where the cameras see it)."""
     shade = trimesh.creation.cone(radius=0.075, height=0.12, sections=48)  # apex at +z
     axis = np.array([0.6, -1.0, 0.0]) / np.linalg.norm([0.6, -1.0, 0.0])  # base to apex goes against this

@@ -1,5 +1,5 @@
 """Full 360-degree orbits of composite objects (thin and thick parts) beside a distractor cube, against ground
-truth: Chamfer distance after rigid alignment, one component, floor and cube gone, trajectory error (issue 10)."""
+truth: Chamfer distance after rigid alignment, one component, floor and cube gone, trajectory error."""
 from __future__ import annotations
 
 import numpy as np
@@ -12,7 +12,7 @@ from kinetre.scan.surface import ScanMesh, component_count
 
 import scan_synthetic as synthetic
 
-# (object, frames, width, height): the lamp as the issue filed it, the others at 320x240 to keep the suite short
+# (object, frames, width, height): the lamp at full VGA, the others at 320x240 to keep the suite short
 ORBITS = [("lamp", 40, 640, 480), ("chair", 30, 320, 240), ("figure", 30, 320, 240)]
 PLANE_BAND = 0.025  # plane removal cuts what lies within 2 voxels (1.2 cm) of the floor; compare above this
 

@@ -1,6 +1,6 @@
 """Spoken test commands, synthesised at test time with Debian's festival voices (no audio in the repository).
 
-espeak-ng's voices are not used: pocketsphinx misses espeak-ng's lone "possess" in every voice (SPEC §3.3).
+espeak-ng's voices are not used: pocketsphinx misses espeak-ng's lone "possess" in every voice.
 """
 from __future__ import annotations
 

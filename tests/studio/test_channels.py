@@ -1,4 +1,4 @@
-"""The embedded hub: NATS subject matching and latest-wins delivery (SPEC §7)."""
+"""The embedded hub: NATS subject matching and latest-wins delivery (avateering paper §2)."""
 import asyncio
 
 import pytest
@@ -84,7 +84,7 @@ def test_urgent_subjects_jump_the_line():
 
 
 def test_replies_are_queued_while_live_data_is_latest_wins():
-    """Every error message reaches its page (issue 12 found them merged under load); frames still merge."""
+    """Every error message reaches its page (under load they were once merged); frames still merge."""
     async def run():
         hub = Hub()
         sub = hub.subscribe("kinetre.skeleton.*", urgent=("kinetre.client.c1",))

@@ -1,4 +1,4 @@
-"""50 WebSocket clients for 30 s on 127.0.0.1, malformed messages mixed in (issue 5's load test).
+"""50 WebSocket clients for 30 s on 127.0.0.1, malformed messages mixed in.
 
 The server must keep serving everyone, answer every malformed message without dropping the
 connection, and count every well-formed frame, including all of those from a client that sends as

@@ -1,4 +1,4 @@
-"""Networked scenes over a real nats-server (issue 12): a scene process and a studio that talk only over
+"""Networked scenes over a real nats-server: a scene process and a studio that talk only over
 NATS, room tokens, room isolation, a NATS server killed and restarted, a scene killed and restarted
 (pages are told "scene lost"), and a take that survives its recorder being killed.
 

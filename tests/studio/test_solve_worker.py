@@ -1,4 +1,4 @@
-"""The solve in its own process (issue 12): the same poses as an in-process rig, and a killed worker is
+"""The solve in its own process: the same poses as an in-process rig, and a killed worker is
 replaced with the scene re-attaching everybody at their current pose."""
 import asyncio
 import os

@@ -40,7 +40,7 @@ class Primitive:
     joints : (V, 4) int64
         Indices into `Avatar.joints` (skin joint order), as JOINTS_0.
     weights : (V, 4) float64
-        WEIGHTS_0, renormalised to sum 1 (SPEC §6.1: LBS with weights normalised to sum 1).
+        WEIGHTS_0, renormalised to sum 1 (avateering paper §3: LBS with weights normalised to sum 1).
     faces : (F, 3) int64
     uvs : (V, 2) float64 or None
     color : (4,) float64

@@ -1,4 +1,4 @@
-"""Tracked joints → the avatar's own joint rotations: the avateering paper's Algorithm 1 (SPEC §6.1).
+"""Tracked joints → the avatar's own joint rotations: the avateering paper's Algorithm 1 (§3).
 
 Off-line (`plan_retarget`): for each avatar joint J_i that owns a tracked bone (i → c), the bone's rest
 direction d_i = (J_c − J_i)/‖·‖ from the bind pose (bone lengths L_i are the avatar's and never change).

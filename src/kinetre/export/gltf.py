@@ -1,4 +1,4 @@
-"""A take as a rigged, animated glTF 2.0 file (SPEC §8): graph nodes become joints, one animation.
+"""A take as a rigged, animated glTF 2.0 file: graph nodes become joints, one animation.
 
 The static part of a mesh without material (positions, normals, indices, vertex colours) is written here
 with pygltflib; a mesh with UVs or a material (and its embedded image) goes through trimesh's glTF exporter.
@@ -7,12 +7,12 @@ The skin and the animation are added with pygltflib:
 * every graph node j is a joint node with rest translation g_j and inverse bind matrix translate(-g_j);
 * per frame its translation is g_j + t_j and its rotation the polar-decomposition rotation Q_j of R_j, so
   a glTF player computes  v' = sum_j w_j (Q_j (v - g_j) + g_j + t_j),  which differs from our own skinning
-  (Eq. 2, with R_j) only by the small non-rotation part of R_j (SPEC §8: < 0.1 % of the bbox diagonal);
-* JOINTS_0 / WEIGHTS_0 are the graph's 4 nodes and weights per vertex (SPEC §1.4);
+  (Eq. 2, with R_j) only by the small non-rotation part of R_j (< 0.1 % of the bbox diagonal on the test clips);
+* JOINTS_0 / WEIGHTS_0 are the graph's 4 nodes and weights per vertex (Eq. 2);
 * one animation, one LINEAR sampler pair (translation, rotation) per joint, keyed at every frame.
 
 When a take stretches the mesh (a badly fitting skeleton pulls nodes apart), dropping the non-rotation part
-of R_j can cost more than the SPEC's 0.1 %. Then each joint gets a parent node that carries it exactly:
+of R_j can cost more than that 0.1 %. Then each joint gets a parent node that carries it exactly:
 R_j = U diag(s) W (SVD), parent translation g_j + t_j, rotation U and scale s, joint rotation W, so the
 joint's world matrix is T(g_j + t_j) R_j and the player's skinning equals Eq. 2 at every key
 (`stretch=None` picks this only when needed, from `polar_error_bound`).
@@ -58,7 +58,7 @@ def write_gltf(path, mesh: Mesh, graph: DeformationGraph, poses: list[GraphPose]
     name : str
         Name of the animation (and prefix of the mesh and joint names).
     stretch : bool or None
-        False: SPEC §8's joints (translation + polar rotation), which drop the non-rotation part of each
+        False: plain joints (translation + polar rotation), which drop the non-rotation part of each
         R_j. True: each joint gets a parent node carrying R_j's stretch (R_j = U diag(s) W: parent
         rotation U and scale s, joint rotation W), so a player reproduces Eq. 2 exactly at every key.
         None (default): True only if dropping the stretch could move a vertex by more than `tolerance`

@@ -1,4 +1,5 @@
-"""`build_graph`: mesh → orientation-aware nodes → edges → bridges → skinning weights (SPEC §1)."""
+"""`build_graph`: mesh → orientation-aware nodes → edges → bridges → skinning weights (KinÊtre paper,
+"Extending Embedded Deformation", Eq. 2, 6)."""
 from __future__ import annotations
 
 import dataclasses

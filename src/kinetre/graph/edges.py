@@ -1,4 +1,5 @@
-"""Graph edges (SPEC §1.3): k-nearest neighbours under D, joined by an MST, with bridge edges marked.
+"""Graph edges (KinÊtre paper, "Extending Embedded Deformation", Fig. 3-4): k-nearest neighbours
+under D, joined by an MST, with bridge edges marked.
 
 The edge list is the (E, 2) int32 form with edges[:, 0] < edges[:, 1], each undirected edge once.
 """

@@ -1,4 +1,4 @@
-"""The `DeformationGraph` dataclass: nodes, edges, bridges and per-vertex skinning data (SPEC §1)."""
+"""The `DeformationGraph` dataclass: nodes, edges, bridges and per-vertex skinning data (KinÊtre paper, Eq. 1-2)."""
 from __future__ import annotations
 
 from dataclasses import dataclass

@@ -1,4 +1,4 @@
-"""Orientation-aware Poisson-disk sampling by dart throwing (SPEC §1.2).
+"""Orientation-aware Poisson-disk sampling by dart throwing (KinÊtre paper, Eq. 6).
 
 Area-weighted random surface points are visited in random order; a point becomes a node when its
 orientation-aware distance D (Eq. 6) to every accepted node is at least R. R = sqrt(A / N) for a

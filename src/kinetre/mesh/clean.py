@@ -1,4 +1,4 @@
-"""Mesh cleanup (SPEC: weld by position, drop degenerate/duplicate faces and unreferenced vertices), fast
+"""Mesh cleanup (weld by position, drop degenerate/duplicate faces and unreferenced vertices), fast
 when there is nothing to clean.
 
 trimesh's `merge_vertices`, `nondegenerate_faces`, `unique_faces` and `remove_unreferenced_vertices` sort

@@ -1,1 +1,2 @@
-"""Physics proxies: the mesh as kinematic spheres that follow the deformation (SPEC §4)."""
+"""Physics proxies: the mesh as kinematic spheres that follow the deformation (KinÊtre paper,
+"Physics-based Interactions")."""

@@ -1,4 +1,4 @@
-"""Sphere proxies of a mesh for the physics world (SPEC §4, paper §"Physics-based Interactions").
+"""Sphere proxies of a mesh for the physics world (KinÊtre paper, "Physics-based Interactions").
 
 Packing: visit the vertices in a random order (fixed seed); each vertex not yet inside a sphere becomes
 the centre of a new sphere of radius r = 4 × mean edge length, and every vertex within r of it is marked

@@ -1,4 +1,5 @@
-"""Scanning (SPEC §5): RGB-D frames → frame-to-model tracking → TSDF fusion → segmentation → clean mesh.
+"""Scanning (KinÊtre paper, "Acquisition, Segmentation and Meshing"): RGB-D frames → frame-to-model
+tracking → TSDF fusion → segmentation → clean mesh.
 
 Needs the `scan` extra (Open3D); importing this package does not, only running a scan does.
 

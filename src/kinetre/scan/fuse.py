@@ -1,4 +1,5 @@
-"""TSDF fusion (SPEC §5): each depth frame updates a truncated signed distance by a weighted running average.
+"""TSDF fusion (KinÊtre paper, "Acquisition"): each depth frame updates a truncated signed distance by a
+weighted running average.
 
     D(x) <- (W(x) D(x) + d(x)) / (W(x) + 1),   W(x) <- W(x) + 1
 

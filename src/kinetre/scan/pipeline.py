@@ -206,7 +206,7 @@ def scan(frames: str | Path, out_path: str | Path, *, segment: str | None = None
               the largest component are removed
     The mesh is in metres, +Y up: the first camera's frame turned upright, or with `segment="plane"` the plane
     is y = 0 and the object is centred above the origin. The plane is the dominant one in the first fused
-    view (SPEC §5: "from the current view"), which is where a scan of an object on a table starts.
+    view (the paper's plane "from the current view"), which is where a scan of an object on a table starts.
     threads : OpenMP threads for Open3D's kernels (and OpenCV's pool). One is the default because on a shared
               CPU OpenMP's spin-waiting threads made each odometry call 10-50x slower in our measurements.
     """

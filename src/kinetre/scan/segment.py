@@ -1,4 +1,4 @@
-"""Cut the scanned object out of the scene (SPEC §5, patent claim 2).
+"""Cut the scanned object out of the scene (KinÊtre paper, "Segmentation"; patent claim 2).
 
 plane : the dominant plane of a view (RANSAC) is the table or floor the object stands on; everything on or
         below it goes, and the largest connected component left is the object.

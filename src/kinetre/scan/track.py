@@ -1,4 +1,5 @@
-"""Camera tracking: frame-to-frame motion checked against the model, frame-to-model ICP as the fallback (SPEC §5).
+"""Camera tracking: frame-to-frame motion checked against the model, frame-to-model ICP as the fallback
+(KinÊtre paper, "Acquisition").
 
 For frame k with the previous accepted frame k-1 at pose T_{k-1} (camera-to-world):
 

@@ -1,4 +1,4 @@
-"""Skeleton attachment (SPEC §3.2): joints and bone-cylinder samples become point constraints.
+"""Skeleton attachment (KinÊtre paper, "Constraints"): joints and bone-cylinder samples become point constraints.
 
 A joint within `reach` (10 cm) of the graph is carried by its 4 nearest nodes (Euclidean, linear
 falloff). Each bone is a cylinder of radius 4 cm with 16 samples (4 rings × 4 around) and outward

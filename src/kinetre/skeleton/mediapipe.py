@@ -1,4 +1,4 @@
-"""MediaPipe Pose's 33 landmarks -> Kinect-20 (SPEC §3.1), and the root translation from the image.
+"""MediaPipe Pose's 33 landmarks -> Kinect-20, and the root translation from the image.
 
 MediaPipe gives two sets per frame: world landmarks (metres, hip-centred, camera axes: x right, y down,
 z away from the camera) and image landmarks (x, y normalised to the image, z relative depth). The world
@@ -41,7 +41,7 @@ BLENDSHAPES = (
     "mouthUpperUpRight", "noseSneerLeft", "noseSneerRight",
 )
 
-# Kinect joint -> MediaPipe landmarks averaged (SPEC §3.1); Spine is derived below.
+# Kinect joint -> MediaPipe landmarks averaged; Spine is derived below.
 _SOURCES = {
     "HipCenter": (23, 24), "ShoulderCenter": (11, 12), "Head": (7, 8),
     "ShoulderLeft": (11,), "ElbowLeft": (13,), "WristLeft": (15,), "HandLeft": (17, 19),

@@ -1,4 +1,5 @@
-"""Skeleton hierarchies (SPEC §3.1) and the `Skeleton` frame: joint positions plus a tracked mask."""
+"""Skeleton hierarchies (Kinect-20 of the KinÊtre paper, OpenNI-17 of the avateering paper's Fig. 3) and the
+`Skeleton` frame: joint positions plus a tracked mask."""
 from __future__ import annotations
 
 from dataclasses import dataclass

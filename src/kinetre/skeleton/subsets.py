@@ -1,4 +1,5 @@
-"""Named joint subsets ("left arm", "upper body", …) that choose which joints drive the mesh (SPEC §3.1)."""
+"""Named joint subsets ("left arm", "upper body", …) that choose which joints drive the mesh (KinÊtre paper,
+"Constraints")."""
 from __future__ import annotations
 
 import numpy as np

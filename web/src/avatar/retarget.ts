@@ -1,5 +1,5 @@
 // Tracked Kinect-20 joints → an avatar's own joint transforms, one frame at a time: the avateering paper's
-// Algorithm 1 (SPEC §6.1), the same loop as src/kinetre/avatar/retarget.py `_frames` (a Python test runs
+// Algorithm 1 (avateering paper §3), the same loop as src/kinetre/avatar/retarget.py `_frames` (a Python test runs
 // both on one fixture and compares the numbers). The plan (rest directions d_i, the root frame, the facing
 // turn, bind matrices) comes from the server, which maps the bones (by VRM, names or geometry).
 //

@@ -1,4 +1,4 @@
-// MediaPipe Pose (33 landmarks) → Kinect 20 in the studio's frame (SPEC §3.1): metres, +Y up, +Z toward the
+// MediaPipe Pose (33 landmarks) → Kinect 20 in the studio's frame: metres, +Y up, +Z toward the
 // camera. World landmarks are hip-centred with +Y down, so the root translation (walking, jumping) is
 // recovered from the image: depth from the apparent torso length, x/y from where the hips are in the image.
 import type { Landmark as NormalizedLandmark } from './detection';
@@ -16,7 +16,7 @@ const STAGE_DISTANCE = 2.5; // metres from the camera to where the mesh stands (
 
 type Source = number | [number, number];
 
-// Kinect joint ← landmark index, or the midpoint of two (SPEC §3.1). Spine is derived afterwards.
+// Kinect joint ← landmark index, or the midpoint of two. Spine is derived afterwards.
 const SOURCES: (Source | 'spine')[] = [
   [23, 24], 'spine', [11, 12], [7, 8],
   11, 13, 15, [17, 19],

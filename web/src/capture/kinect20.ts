@@ -1,4 +1,4 @@
-// The Kinect v1 20-joint skeleton (SPEC §3.1): joint names in the server's order and the 19 bones.
+// The Kinect v1 20-joint skeleton (the KinÊtre paper's tracker): joint names in the server's order and the 19 bones.
 
 export const KINECT20_JOINTS = [
   'HipCenter', 'Spine', 'ShoulderCenter', 'Head',

@@ -1,7 +1,8 @@
-// The physics world of the studio (SPEC §4): the mesh's sphere proxies as kinematic position-based bodies
-// (each step they are told where to be next, so Rapier gives them the velocity that gets them there and
-// they hit boxes and balls with it), dynamic boxes and balls, and the ground. Fixed step 1/60 s and a
-// seeded ball thrower: the same proxy positions give the same world, step for step.
+// The physics world of the studio (KinÊtre paper, "Physics-based Interactions"): the mesh's sphere proxies as
+// kinematic position-based bodies (each step they are told where to be next, so Rapier gives them the
+// velocity that gets them there and they hit boxes and balls with it), dynamic boxes and balls, and the
+// ground. Fixed step 1/60 s and a seeded ball thrower: the same proxy positions give the same world, step for
+// step.
 import type { RigidBody } from '@dimforge/rapier3d-compat';
 import {
   type BoxSpec, type Bounds, GRAVITY, type PresetName, nextThrow, seededRandom, sphereBounds, towerLayout,

@@ -1,6 +1,7 @@
-// The mesh's sphere proxies (SPEC §4): each sphere is centred on a mesh vertex and carried by that vertex's
-// own 4 graph nodes and weights (Eq. 2), the formula the GPU skinning shader applies to the surface, so the
-// proxies sit exactly where the drawn mesh is. Packed on the server (src/kinetre/physics/spheres.py).
+// The mesh's sphere proxies (KinÊtre paper, "Physics-based Interactions"): each sphere is centred on a mesh
+// vertex and carried by that vertex's own 4 graph nodes and weights (Eq. 2), the formula the GPU skinning
+// shader applies to the surface, so the proxies sit exactly where the drawn mesh is. Packed on the server
+// (src/kinetre/physics/spheres.py).
 
 export class SphereProxies {
   readonly count: number;

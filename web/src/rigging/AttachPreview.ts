@@ -1,6 +1,6 @@
-// What "possess" would attach right now (SPEC §3.2, shown live before possession): joints within 10 cm of
-// a graph node, and the graph nodes within 10 cm of a joint or a bone. Computed in the mesh's own frame,
-// where the server attaches (so a scaled-up mesh reaches further, exactly as on the server).
+// What "possess" would attach right now (KinÊtre paper, "Constraints"; shown live before possession): joints
+// within 10 cm of a graph node, and the graph nodes within 10 cm of a joint or a bone. Computed in the mesh's
+// own frame, where the server attaches (so a scaled-up mesh reaches further, exactly as on the server).
 import * as THREE from 'three';
 import { KINECT20_BONES } from '../capture/kinect20';
 import type { Vec3 } from '../net/protocol';

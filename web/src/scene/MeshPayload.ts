@@ -26,7 +26,7 @@ export interface MeshData {
   skinWeight: Float32Array; // V × 4, rows sum to 1
   nodes: Float32Array; // N × 3 node positions g_j
   nodeNormals: Float32Array; // N × 3
-  spheres: Uint32Array; // S: the vertex at the centre of each physics proxy sphere (SPEC §4)
+  spheres: Uint32Array; // S: the vertex at the centre of each physics proxy sphere
   sphereRadius: number; // their radius, mesh frame (metres before placement)
 }
 

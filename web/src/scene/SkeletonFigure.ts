@@ -1,5 +1,5 @@
 // A tracked Kinect-20 skeleton drawn as joint spheres and bone sticks. Joints that would attach if the
-// user said "possess" now are highlighted (rigging view, SPEC §3.2); untracked joints are hidden.
+// user said "possess" now are highlighted (rigging view); untracked joints are hidden.
 import * as THREE from 'three';
 import { JOINT_COUNT, KINECT20_BONES } from '../capture/kinect20';
 import type { Vec3 } from '../net/protocol';

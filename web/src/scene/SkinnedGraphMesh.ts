@@ -1,5 +1,5 @@
 // The mesh skinned on the GPU by its deformation graph: every graph node is a bone, each vertex has the
-// 4 node indices/weights of SPEC §1.4, and the bone matrices are the node affines sent by the server
+// 4 node indices/weights of Eq. 2, and the bone matrices are the node affines sent by the server
 // (pose.node_matrices). Bones are not in the scene graph and bind matrices are identities, so a bone
 // matrix maps a rest vertex straight to its deformed place in the mesh's own frame.
 //

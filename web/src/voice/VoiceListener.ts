@@ -1,6 +1,6 @@
 // Voice commands, offline: the microphone is captured in an AudioWorklet, cut into utterances by an
 // energy threshold, downsampled to 16 kHz mono and posted as WAV to the server, which recognises
-// "possess", "release" and the subsets with pocketsphinx and applies them (SPEC §3.3).
+// "possess", "release" and the subsets with pocketsphinx and applies them (the KinÊtre paper's speech interface).
 import { encodeWav, resample } from './wav';
 
 // The worklet only forwards 128-sample blocks; cutting and encoding happen on the main thread.

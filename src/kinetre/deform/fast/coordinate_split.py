@@ -180,9 +180,8 @@ class CoordinateSplit:
         (`node_order`), in 4 × 4 blocks: (block row pointers (N + 1,), block columns, strictly lower blocks
         (B, 16) row-major, inverses of the diagonal blocks (N, 16), node_order (N,), shift σ (12N,) in the
         coordinate layout). A block times a node's 12 coordinate-layout entries is 48 multiply-adds on
-        contiguous data where the scalar CSR factor read an index per 3 (`preconditioner.coordinate_solve`: 512
-        nodes, 185-200 against 400-510 µs, although the blocks hold 28 % more entries than the scalar
-        factor's own ordering fills)."""
+        contiguous data where the scalar CSR factor read an index per 3 (`preconditioner.coordinate_solve`), which
+        pays although the blocks hold 28 % more entries than the scalar factor's own ordering fills)."""
         a = csc_matrix(matrix[self._perm][:, self._perm])
         if self.backend == "cholmod":
             lower = self._symbolic.cholesky(a).L()

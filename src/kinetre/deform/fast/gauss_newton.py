@@ -151,8 +151,8 @@ def gauss_newton_pcg(x, g, edges, con_nodes, con_weights, con_points, targets, a
                 decrease = energy - e_new
                 if predicted > 0.0:
                     # Nielsen's update from the gain ratio, against bᵀx (twice the model's decrease for
-                    # CG iterates from 0): the damping stays higher, fewer steps overshoot than with
-                    # the true ratio (5.5 against 4.1 solves per frame on the walk)
+                    # CG iterates from 0): the damping stays higher, so fewer steps overshoot and a frame
+                    # needs fewer solves than with the true ratio
                     rho = decrease / max(predicted, 1e-300)
                     lam = max(lam * max(1.0 / 3.0, 1.0 - (2.0 * rho - 1.0) ** 3), 1e-12)
                     nu = 2.0
@@ -233,7 +233,7 @@ def pcg_frame(x, x0, before, threshold, g, edges, con_nodes, con_weights, con_po
 @njit(cache=True)
 def all_finite(x):
     """Whether every entry of the pose x (N, 12) is finite (`Rig.solve`'s check on each result: numpy's
-    isfinite and all, on the caches the frame left cold, cost 40 µs of a 2 ms frame)."""
+    isfinite and all, on the caches the frame left cold, cost a visible share of a frame)."""
     for j in range(x.shape[0]):
         for u in range(x.shape[1]):
             if not np.isfinite(x[j, u]):

@@ -5,8 +5,8 @@ worker shares it through `multiprocessing.RawValue`), read as a numpy uint8 view
 Newton loop (`gauss_newton.py`) reads it between its steps as well as the Python loops. The share is
 counted on the solving thread's CPU clock (CLOCK_THREAD_CPUTIME_ID, `time.thread_time`'s clock): wall time
 would count the waits for a core on a busy machine. numba has no such clock, so `thread_cpu_time` calls
-libc's clock_gettime by name (an external symbol, not a ctypes pointer: the kernels stay cacheable);
-1.6-5 µs a call here, made once per accepted step and only with a flag given.
+libc's clock_gettime by name (an external symbol, not a ctypes pointer: the kernels stay cacheable),
+once per accepted step and only with a flag given.
 """
 from __future__ import annotations
 
