@@ -130,13 +130,13 @@ def test_openni17_frames_reach_the_avatar_through_kinect20():
     assert not tracked[:, K("HandLeft")].any() and tracked[:, K("KneeRight")].all()
 
 
-def test_the_readme_avatar_example_runs(data_dir):
+def test_the_docs_avatar_example_runs(data_dir):
     import re
     from pathlib import Path
-    text = (Path(__file__).resolve().parents[2] / "README.md").read_text()
+    text = (Path(__file__).resolve().parents[2] / "docs" / "avatars.md").read_text()
     code = next(b for b in re.findall(r"```python\n(.*?)```", text, re.S) if "kinetre.avatar" in b)
     code = code.replace('"CesiumMan.glb"', repr(str(data_dir / "avatars" / "CesiumMan.glb")))
     code = code.replace('"walk.bvh"', repr(str(data_dir / "bvh" / "mocapbank_test.bvh")))
     scope: dict = {}
-    exec(compile(code, "README.md", "exec"), scope)
+    exec(compile(code, "docs/avatars.md", "exec"), scope)
     assert len(scope["vertices"]) == len(scope["take"]) and np.isfinite(scope["vertices"][-1][0]).all()
