@@ -195,23 +195,32 @@ def rigidity_block_jacobian(R, j, k, coordinate, jac):
                 jac[3 * a + b, 9 + (3 * a + c if coordinate else 3 * c + a)] += R[j, c, b]     # d/dR_k[c, a]
 
 
+@njit(cache=True, inline="always")
+def _add_block(data, grad, pos, jac, res, offset, a, b, w, hessian):
+    """Add w Jᵀr to `grad` and w JᵀJ to the matrix entries `data[pos]` for one block `jac` of residuals
+    res[offset : offset + rows]: its columns are node a's 9 R unknowns, then node b's when it has 18."""
+    rows, cols = jac.shape
+    for u in range(cols):
+        gu = 0.0
+        for r in range(rows):
+            gu += jac[r, u] * res[offset + r]
+        node = a if u < 9 else b
+        grad[12 * node + (u % 9)] += w * gu
+        if not hessian:
+            continue
+        for v in range(cols):
+            s = 0.0
+            for r in range(rows):
+                s += jac[r, u] * jac[r, v]
+            data[pos[u, v]] += w * s
+
+
 @njit(cache=True)
 def _add_rotation(data, grad, rot_pos, R, r_rot, w, hessian):
     jac = np.zeros((6, 9))
     for j in range(R.shape[0]):
         rotation_block_jacobian(R, j, False, jac)
-        for u in range(9):
-            gu = 0.0
-            for r in range(6):
-                gu += jac[r, u] * r_rot[6 * j + r]
-            grad[12 * j + u] += w * gu
-            if not hessian:
-                continue
-            for v in range(9):
-                s = 0.0
-                for r in range(6):
-                    s += jac[r, u] * jac[r, v]
-                data[rot_pos[j, u, v]] += w * s
+        _add_block(data, grad, rot_pos[j], jac, r_rot, 6 * j, j, j, w, hessian)
 
 
 @njit(cache=True)
@@ -221,16 +230,4 @@ def _add_rigidity(data, grad, rig_pos, bridges, R, r_rig, w, hessian):
         j = bridges[e, 0]
         k = bridges[e, 1]
         rigidity_block_jacobian(R, j, k, False, jac)
-        for u in range(18):
-            gu = 0.0
-            for r in range(9):
-                gu += jac[r, u] * r_rig[9 * e + r]
-            node = j if u < 9 else k
-            grad[12 * node + (u % 9)] += w * gu
-            if not hessian:
-                continue
-            for v in range(18):
-                s = 0.0
-                for r in range(9):
-                    s += jac[r, u] * jac[r, v]
-                data[rig_pos[e, u, v]] += w * s
+        _add_block(data, grad, rig_pos[e], jac, r_rig, 9 * e, j, k, w, hessian)

@@ -28,19 +28,25 @@ _SAFE = 1.0 - 1e-12  # a lower bound may round above the D it bounds: prune only
 _LENIENT = 1.0 + 1e-9  # the same for the squared test before D
 
 
+@njit(cache=True, inline="always")
+def _place(dist, idx, p, d, i):
+    """Put (d, i) at slot p or before it, moving the larger entries before p one slot up (the step of an
+    insertion sort; slots below p are sorted ascending)."""
+    while p > 0 and dist[p - 1] > d:
+        dist[p] = dist[p - 1]
+        idx[p] = idx[p - 1]
+        p -= 1
+    dist[p] = d
+    idx[p] = i
+
+
 @njit(cache=True)
 def _insert(best_d, best_i, d, i):
     # keep best_d sorted ascending; drop the largest
     m = best_d.shape[0]
     if d >= best_d[m - 1]:
         return
-    p = m - 1
-    while p > 0 and best_d[p - 1] > d:
-        best_d[p] = best_d[p - 1]
-        best_i[p] = best_i[p - 1]
-        p -= 1
-    best_d[p] = d
-    best_i[p] = i
+    _place(best_d, best_i, m - 1, d, i)
 
 
 @njit(cache=True)
@@ -196,14 +202,7 @@ def _candidates(nodes, nnormals, lo, hi, axis, spread, longest, reach, head, nxt
                     a = nxt[a]
     # insertion sort (a cube's list is short), then the safety factor on the bounds
     for q in range(1, m):
-        dq, iq = dist[q], idx[q]
-        p = q
-        while p > 0 and dist[p - 1] > dq:
-            dist[p] = dist[p - 1]
-            idx[p] = idx[p - 1]
-            p -= 1
-        dist[p] = dq
-        idx[p] = iq
+        _place(dist, idx, q, dist[q], idx[q])
     for q in range(m):
         dist[q] *= _SAFE
     return idx[:m], dist[:m]
