@@ -10,6 +10,7 @@ import sys
 from ..errors import KinetreError
 from .common import EPILOG, UsageError
 
+
 def build_parser() -> argparse.ArgumentParser:
     from . import animate, avatar, capture, face, graph, info, record, rooms, scene, studio
     parser = argparse.ArgumentParser(
