@@ -51,7 +51,7 @@ def bench_build_graph():
 
 
 # one record per design worth an option: the default (adaptive: half cycle, two-level, coarse space), its parts,
-# block Jacobi with and without the coarse space, and the exact reference.
+# and the exact reference.
 DESIGNS = {
     "pcg_adaptive": SolverSettings(),
     # the same preconditioners, a frame ends only on a step that gained < 1e-3 of E
@@ -61,8 +61,6 @@ DESIGNS = {
     "pcg_half_cycle_gauss_newton_blocks": SolverSettings(preconditioner="half_cycle", coarse_regions=0,
                                                          curvature=False),
     "pcg_two_level": SolverSettings(preconditioner="two_level", coarse_regions=0),
-    "pcg_block_jacobi": SolverSettings(preconditioner="block_jacobi", coarse_regions=0),
-    "pcg_block_jacobi_coarse": SolverSettings(preconditioner="block_jacobi"),
     "exact_gn": SolverSettings(method="exact"),
 }
 # what a solve carries over to the next frame, restored between the timed runs of one frame
@@ -212,14 +210,14 @@ def same_start_gaps(graph, skeletons, designs, subset=None, count=64):
 
 
 def bench_solve_agreement(cases=((256, 2), (256, 1, "right arm")), skip=5):
-    """Energy agreement with the same start (`same_start_gaps`): the default, block Jacobi, the
+    """Energy agreement with the same start (`same_start_gaps`): the default, the
     "decrease" stop rule and the exact solve with its default stop, against `EXACT_TIGHT`; median, p95 and
     max of the relative gap over the frames after the first `skip`. Two cases by default: the tight
     reference costs up to 30 factorisations a frame (these two took 7 min at load 2.5; 512 nodes ~2× each)."""
     frames, _ = walk_frames()
     body = capsule_body(frames[0], radius=0.06)
     designs = {"pcg_adaptive": DESIGNS["pcg_adaptive"], "pcg_adaptive_decrease": DESIGNS["pcg_adaptive_decrease"],
-               "pcg_block_jacobi_coarse": DESIGNS["pcg_block_jacobi_coarse"], "exact_gn": DESIGNS["exact_gn"]}
+               "exact_gn": DESIGNS["exact_gn"]}
     graphs = {}
     for nodes, skeletons, *subset in cases:
         subset = subset[0] if subset else None

@@ -29,8 +29,8 @@ def python_path(rig, skeletons):
     return report
 
 
-@pytest.mark.parametrize("settings", [SolverSettings(), SolverSettings(preconditioner="block_jacobi")],
-                         ids=["default", "block_jacobi"])
+@pytest.mark.parametrize("settings", [SolverSettings(), SolverSettings(preconditioner="two_level")],
+                         ids=["default", "two_level"])
 def test_one_call_frames_equal_the_python_path(walk, settings, monkeypatch):
     graph, frames, second = walk
     import kinetre.deform.solver as solver

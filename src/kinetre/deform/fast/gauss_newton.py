@@ -19,14 +19,14 @@ from .coarse_space import coarse_factor
 from .energy import energy_gradient
 from .hessian import local_blocks, stretch_curvature
 from .live_stop import should_stop
-from .preconditioner import BLOCK_JACOBI, node_factors
+from .preconditioner import node_factors
 
 # The coarse space serves only a frame's first two linear solves, each with its factor made afresh: it carries
 # the large, slow motions (a whole limb turning) of a frame's first steps. The steps after those mostly creep
 # (Gauss-Newton converging linearly on a pose the targets cannot quite reach), where it would cost a factor and
 # a coarse solve per CG iteration for nothing; a factor kept for the whole frame goes stale as the pose moves,
 # and CG then runs to its cap. With one solve only, frames end measurably above the exact minimum when one arm
-# possesses a body. Block Jacobi keeps it on every step: nothing else there carries the graph-wide coupling.
+# possesses a body.
 COARSE_STEPS = 2
 
 # the least ratio of successive steps' gains the "remaining" rule assumes: a frame's first step (the tracked
@@ -113,7 +113,7 @@ def gauss_newton_pcg(x, g, edges, con_nodes, con_weights, con_points, targets, a
                 damp[i] = lam * diag[i]
             node_factors(k_blocks, rot, rig, bridges, damp, node_fac)
             # λ below 1e-2 barely changes H's diagonal (λ diag(H) is added to it): not worth a refactor
-            use = coarse if iterations <= COARSE_STEPS or kind == BLOCK_JACOBI else no_coarse
+            use = coarse if iterations <= COARSE_STEPS else no_coarse
             if use[0].shape[0] and not (0.25 * (coarse_lam + 1e-2) <= lam + 1e-2 <= 4.0 * (coarse_lam + 1e-2)):
                 coarse_factor(kc, coarse[1], coarse[2], rot, rig, bridges, damp, coarse[0])
                 coarse_lam = lam

@@ -11,13 +11,12 @@ They are combined as:
 - the two-level S · B · S (symmetric multiplicative);
 - the half cycle (ours) B then S: one pair of triangular solves, H z for free; not symmetric, so CG uses
   it for a step's first iteration only, and a step that needs more restarts with the two-level;
-- block Jacobi B alone, with the coarse space added;
 - the additive S + B, positive definite whatever the pose: CG restarts with it where a multiplicative
   form loses definiteness (far from rotations).
 
 Since K_σ S r = r, the residual after a coordinate solve needs only the node and bridge blocks
 (`after_coordinate_solve`), not a pass over K. A coarse space of region-affine motions (`coarse_space.py`)
-joins the half cycle and the two-level multiplicatively, block Jacobi additively.
+joins the half cycle and the two-level multiplicatively.
 """
 from __future__ import annotations
 
@@ -27,7 +26,7 @@ from ...jit import njit
 from .coarse_space import coarse_add
 from .hessian import block_row, hessian_times, local_times
 
-BLOCK_JACOBI, TWO_LEVEL, ADDITIVE, HALF_CYCLE = 0, 1, 2, 3
+TWO_LEVEL, ADDITIVE, HALF_CYCLE = 1, 2, 3
 
 
 @njit(cache=True)
@@ -180,11 +179,6 @@ def precondition(kind, fac, kp, ki, kx, rot, rig, bridges, damp, node_fac, coars
     two-level also ends with one (C, two-level, C: symmetric)."""
     shift = fac[5]
     gfac, region, offsets = coarse
-    if kind == BLOCK_JACOBI:  # with a coarse space additively: z = B r + C r (symmetric)
-        node_solve(node_fac, r, z)
-        if gfac.shape[0]:
-            coarse_add(gfac, region, offsets, r, z)
-        return False
     if kind == HALF_CYCLE:  # z ← B r, z ← z + S (r − H z): one coordinate solve, and H z comes free
         if gfac.shape[0]:  # z ← C r, z ← z + B (r − H z) first
             z[:] = 0.0
