@@ -1,18 +1,24 @@
-"""Face blendshapes → an avatar's morph target weights: its VRM expressions, else its ARKit-named targets.
+"""Face blendshapes → an avatar's morph target weights (its VRM expressions, else its ARKit-named targets),
+and → VRM 1.0 expressions for a VRM Animation file (`vrm_expressions`).
 
 MediaPipe's FaceLandmarker gives the 51 ARKit face-tracking weights (plus `_neutral`). An avatar takes them
 through, in order:
 
 1. VRM expressions (VRM 1.0 `VRMC_vrm.expressions`, VRM 0.x `VRM.blendShapeMaster.blendShapeGroups`): an
    expression named like a blendshape ("perfect sync" avatars) takes that weight; the presets take the
-   blendshapes they stand for (aa ← jawOpen, ou ← mouthPucker, oh ← mouthFunnel, blinkLeft ← eyeBlinkLeft,
-   happy ← the mean of both mouthSmiles, sad ← mouthFrowns, angry ← browDowns, surprised ← browInnerUp);
-   each expression then moves its bound morph targets by its bind weight.
+   blendshapes they stand for (`VRM_PRESETS`: aa ← jawOpen, ou ← mouthPucker, oh ← mouthFunnel,
+   blinkLeft ← eyeBlinkLeft, happy ← the mean of both mouthSmiles, sad ← mouthFrowns, angry ← browDowns,
+   surprised ← browInnerUp, ...; docs/vrm.md has the table); each expression then moves its bound morph
+   targets by its bind weight.
 2. Otherwise morph targets named after a blendshape (the glTF `extras.targetNames` three.js and Blender
    write, on the mesh or its first primitive), matched ignoring case, punctuation and a prefix
    ("jawOpen", "ARKit_JawOpen", "blendShape1.jawOpen").
 
 Everything is linear, so the map is a matrix per mesh: weights = clip(W · blendshapes, 0, 1).
+
+A VRM Animation carries expressions by name instead (`vrm_expressions`): each VRM 1.0 preset from the same
+table, blink split so that blink + blinkLeft is the left eye's closure and blink + blinkRight the right
+one's (a VRM player adds them), and every blendshape no preset uses as a custom expression of its own name.
 """
 from __future__ import annotations
 
@@ -23,13 +29,33 @@ import numpy as np
 
 from .load import Avatar
 
-# VRM preset (lower case, VRM 0.x and 1.0 spellings) -> the blendshapes whose mean drives it
-PRESETS = {"a": ("jawOpen",), "aa": ("jawOpen",), "u": ("mouthPucker",), "ou": ("mouthPucker",),
-           "o": ("mouthFunnel",), "oh": ("mouthFunnel",), "blink_l": ("eyeBlinkLeft",),
-           "blinkleft": ("eyeBlinkLeft",), "blink_r": ("eyeBlinkRight",), "blinkright": ("eyeBlinkRight",),
-           "joy": ("mouthSmileLeft", "mouthSmileRight"), "happy": ("mouthSmileLeft", "mouthSmileRight"),
-           "sorrow": ("mouthFrownLeft", "mouthFrownRight"), "sad": ("mouthFrownLeft", "mouthFrownRight"),
-           "angry": ("browDownLeft", "browDownRight"), "surprised": ("browInnerUp",)}
+# VRM 1.0 preset -> the blendshapes whose mean drives it; left and right are the face's own in both
+VRM_PRESETS = {
+    "aa": ("jawOpen",),
+    "ih": ("mouthStretchLeft", "mouthStretchRight"),
+    "ou": ("mouthPucker",),
+    "ee": ("mouthLowerDownLeft", "mouthLowerDownRight"),
+    "oh": ("mouthFunnel",),
+    "happy": ("mouthSmileLeft", "mouthSmileRight"),
+    "angry": ("browDownLeft", "browDownRight"),
+    "sad": ("mouthFrownLeft", "mouthFrownRight"),
+    "surprised": ("browInnerUp",),
+    "relaxed": ("cheekSquintLeft", "cheekSquintRight"),
+    "blinkLeft": ("eyeBlinkLeft",),
+    "blinkRight": ("eyeBlinkRight",),
+    "lookUp": ("eyeLookUpLeft", "eyeLookUpRight"),
+    "lookDown": ("eyeLookDownLeft", "eyeLookDownRight"),
+    "lookLeft": ("eyeLookOutLeft", "eyeLookInRight"),     # both eyes turned to the face's left
+    "lookRight": ("eyeLookInLeft", "eyeLookOutRight"),
+}
+# VRM 0.x names of the same presets
+VRM0_NAMES = {"a": "aa", "i": "ih", "u": "ou", "e": "ee", "o": "oh", "joy": "happy", "sorrow": "sad",
+              "fun": "relaxed", "blink_l": "blinkLeft", "blink_r": "blinkRight", "lookup": "lookUp",
+              "lookdown": "lookDown", "lookleft": "lookLeft", "lookright": "lookRight"}
+# any spelling, lower case -> the blendshapes whose mean drives it
+PRESETS = {**{k.lower(): v for k, v in VRM_PRESETS.items()},
+           **{old: VRM_PRESETS[new] for old, new in VRM0_NAMES.items()}}
+BLINKS = ("eyeBlinkLeft", "eyeBlinkRight")
 
 
 @dataclass(frozen=True, eq=False)
@@ -47,11 +73,38 @@ class ExpressionMap:
     def weights(self, blendshapes: np.ndarray) -> dict:
         """mesh index -> (T, targets) morph weights for (T, B) blendshapes; a frame without a face (NaN)
         keeps the last frame's weights (zero before the first face)."""
-        b = np.asarray(blendshapes, dtype=np.float64)
-        seen = np.isfinite(b).all(axis=1)
-        last = np.maximum.accumulate(np.where(seen, np.arange(len(b)), -1))
-        held = np.where((last >= 0)[:, None], np.nan_to_num(b)[np.maximum(last, 0)], 0.0)
+        held = _held(blendshapes)
         return {mesh: np.clip(held @ m.T, 0.0, 1.0) for mesh, m in self.matrices.items() if np.any(m)}
+
+
+def vrm_expressions(names, blendshapes: np.ndarray) -> tuple[dict, dict]:
+    """(T, B) blendshape weights named `names` -> ({VRM 1.0 preset: (T,)}, {custom name: (T,)}) in [0, 1].
+
+    A frame without a face (NaN) holds the last frame's weights (zero before the first face), as
+    `ExpressionMap.weights` does. Presets none of whose blendshapes are in `names` are left out.
+    """
+    w = np.clip(_held(blendshapes), 0.0, 1.0)
+    index = {n: i for i, n in enumerate(names)}
+    preset = {}
+    for name, sources in VRM_PRESETS.items():
+        have = [index[s] for s in sources if s in index]
+        if have and name not in ("blinkLeft", "blinkRight"):
+            preset[name] = w[:, have].mean(axis=1)
+    if all(b in index for b in BLINKS):
+        left, right = w[:, index[BLINKS[0]]], w[:, index[BLINKS[1]]]
+        both = np.minimum(left, right)
+        preset.update(blink=both, blinkLeft=left - both, blinkRight=right - both)
+    used = {s for sources in VRM_PRESETS.values() for s in sources}
+    custom = {n: w[:, i] for n, i in index.items() if n not in used and not n.startswith("_")}
+    return preset, custom
+
+
+def _held(blendshapes) -> np.ndarray:
+    """The weights, a frame with NaN holding the last finite frame (zeros before the first)."""
+    b = np.asarray(blendshapes, dtype=np.float64)
+    seen = np.isfinite(b).all(axis=1)
+    last = np.maximum.accumulate(np.where(seen, np.arange(len(b)), -1))
+    return np.where((last >= 0)[:, None], np.nan_to_num(b)[np.maximum(last, 0)], 0.0)
 
 
 def _key(name: str) -> str:

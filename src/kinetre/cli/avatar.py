@@ -1,8 +1,8 @@
-"""`kinetre avatar AVATAR.glb --motion walk.bvh -o out.glb|.gltf|.bvh|.mp4|.webm`
+"""`kinetre avatar AVATAR.glb --motion walk.bvh -o out.glb|.gltf|.vrma|.bvh|.mp4|.webm`
 
 Loads a rigged humanoid (glTF/GLB/VRM), maps its bones to Kinect-20 (a saved map next to it wins), retargets
 any motion source (BVH, recorded take, video) with Algorithm 1 and writes the avatar animated by its own
-joints, or streams it live to a VMC receiver (`--vmc HOST:PORT`, vmc/send.py). `--write-map` saves the
+joints, the take alone as a VRM Animation (.vrma, with VRM expressions from the take's face), or streams it live to a VMC receiver (`--vmc HOST:PORT`, vmc/send.py). `--write-map` saves the
 automatic map as JSON next to the avatar for hand correction.
 """
 from __future__ import annotations
@@ -12,7 +12,7 @@ import time
 
 from .common import VIDEO_EXTS, UsageError, frame_range, load_motion, output_ext, quiet_mediapipe
 
-OUTPUTS = (".glb", ".gltf", ".bvh", ".mp4", ".webm")
+OUTPUTS = (".glb", ".gltf", ".vrma", ".bvh", ".mp4", ".webm")
 
 
 def register(sub) -> None:
@@ -99,6 +99,15 @@ def cmd_avatar(args) -> int:
     if out_ext in (".glb", ".gltf"):
         from ..avatar.export import write_avatar_gltf
         write_avatar_gltf(args.output, avatar, motion, take.fps, morph_weights=morphs)
+    elif out_ext == ".vrma":
+        from ..avatar.expressions import vrm_expressions
+        from ..avatar.normalized import normalized_motion
+        from ..avatar.vrma import write_vrma
+        faces = take.main_blendshapes()
+        expressions = None if faces is None else vrm_expressions(take.blendshape_names, faces)
+        write_vrma(args.output, normalized_motion(plan, bonemap, motion), take.fps, expressions)
+        if expressions is not None:
+            say(f"VRM expressions: {len(expressions[0])} presets, {len(expressions[1])} custom")
     elif out_ext == ".bvh":
         from ..avatar.export import write_avatar_bvh
         write_avatar_bvh(args.output, avatar, plan, motion, take.fps)

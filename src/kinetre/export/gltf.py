@@ -93,8 +93,9 @@ def write_gltf(path, mesh: Mesh, graph: DeformationGraph, poses: list[GraphPose]
     save_gltf(path, doc, blob, "Kinetre (embedded deformation export, trimesh + pygltflib)")
 
 
-def save_gltf(path: Path, doc: gl.GLTF2, blob: bytes, generator: str) -> None:
-    """Write `doc` with `blob` as its one buffer: .glb binary, or .gltf with the buffer as a data URI.
+def save_gltf(path: Path, doc: gl.GLTF2, blob: bytes, generator: str, binary: bool | None = None) -> None:
+    """Write `doc` with `blob` as its one buffer: .glb binary, or .gltf with the buffer as a data URI
+    (`binary` overrides the choice by extension, for binary glTF under its own name such as .vrma).
 
     The JSON is serialised here rather than by pygltflib's `save_binary`, which deep-copies every value of
     the document and re-packs the buffer view by view (over a second for a 400k-vertex take); the buffer
@@ -104,7 +105,7 @@ def save_gltf(path: Path, doc: gl.GLTF2, blob: bytes, generator: str) -> None:
     doc.asset = gl.Asset(version="2.0", generator=generator)
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
-        if path.suffix.lower() == ".glb":
+        if path.suffix.lower() == ".glb" if binary is None else binary:
             text = _document_json(doc)
             text += b" " * (-len(text) % _ALIGN)  # chunks start on 4-byte boundaries
             pad = b"\0" * (-len(blob) % _ALIGN)

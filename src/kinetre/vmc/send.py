@@ -4,20 +4,13 @@ Per frame, in this order: `/VMC/Ext/OK` (loaded, calibrated, tracking), `/VMC/Ex
 `/VMC/Ext/Root/Pos`, one `/VMC/Ext/Bone/Pos` per humanoid bone (Unity HumanBodyBones names), optional
 `/VMC/Ext/Blend/Val` per blendshape, then `/VMC/Ext/Blend/Apply`; each frame is one OSC bundle.
 
-Rotations. A VMC receiver applies each bone's *local* rotation to its own normalised humanoid, whose rest is
-the T-pose with every rotation identity. So for each sent bone b the world rotation relative to the T-pose is
+Rotations are the normalised humanoid's (avatar/normalized.py): local to the nearest sent parent and
+relative to the T-pose, which is a VMC receiver's rest. Positions: the bind-pose offsets, the hips' their
+place above the floor.
 
-    R_T(b) = R(b) · C(b),
-
-R(b) the retargeted world rotation relative to the avatar's bind pose (`AvatarMotion.rotations`) and C(b) the
-smallest rotation taking b's T-pose direction (legs down, spine up, arms out sideways) to its bind direction
-(an A-posed avatar has C ≠ I at the arms; bones without a defined direction, hands, feet, head, take their
-parent's). The local rotation sent is R_T(parent)ᵀ · R_T(b), parent being the nearest sent ancestor in Unity's
-humanoid hierarchy, so a receiver that leaves the bones in between at rest reproduces every world rotation.
-
-Axes. Everything is first turned about +Y so the avatar faces +Z (its left on +X, glTF/VRM 1.0 style), then
-mirrored into Unity's left-handed frame (facing +Z, left on −X): positions (x, y, z) → (−x, y, z), unit
-quaternions (x, y, z, w) → (x, −y, −z, w) (the mirror M = diag(−1, 1, 1) maps R to M R M).
+Axes. The normalised humanoid faces +Z with its left on +X (glTF/VRM 1.0 style); Unity's left-handed frame
+faces +Z with the left on −X: positions (x, y, z) → (−x, y, z), unit quaternions (x, y, z, w) → (x, −y, −z, w)
+(the mirror M = diag(−1, 1, 1) maps R to M R M).
 """
 from __future__ import annotations
 
@@ -27,32 +20,15 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..avatar.bonemap import BoneMap
+from ..avatar.normalized import BONES, NormalizedMotion, normalized_motion
 from ..avatar.retarget import AvatarMotion, RetargetPlan
 from ..errors import KinetreError
 
+__all__ = ["BONES", "MIRROR", "PORT", "VmcFrames", "VmcSender", "frame_bundle", "parse_address",
+           "unity_frames", "vmc_frames"]
+
 PORT = 39539  # the VMC performer's default ("Marionette") port
 
-# Unity HumanBodyBones name -> (Kinect-20 joint playing it, nearest sent parent, T-pose direction or None)
-BONES = {
-    "Hips": ("HipCenter", None, None),
-    "Spine": ("Spine", "Hips", (0.0, 1.0, 0.0)),
-    "Neck": ("ShoulderCenter", "Spine", (0.0, 1.0, 0.0)),
-    "Head": ("Head", "Neck", None),
-    "LeftUpperArm": ("ShoulderLeft", "Spine", (1.0, 0.0, 0.0)),
-    "LeftLowerArm": ("ElbowLeft", "LeftUpperArm", (1.0, 0.0, 0.0)),
-    "LeftHand": ("WristLeft", "LeftLowerArm", None),
-    "RightUpperArm": ("ShoulderRight", "Spine", (-1.0, 0.0, 0.0)),
-    "RightLowerArm": ("ElbowRight", "RightUpperArm", (-1.0, 0.0, 0.0)),
-    "RightHand": ("WristRight", "RightLowerArm", None),
-    "LeftUpperLeg": ("HipLeft", "Hips", (0.0, -1.0, 0.0)),
-    "LeftLowerLeg": ("KneeLeft", "LeftUpperLeg", (0.0, -1.0, 0.0)),
-    "LeftFoot": ("AnkleLeft", "LeftLowerLeg", None),
-    "LeftToes": ("FootLeft", "LeftFoot", None),
-    "RightUpperLeg": ("HipRight", "Hips", (0.0, -1.0, 0.0)),
-    "RightLowerLeg": ("KneeRight", "RightUpperLeg", (0.0, -1.0, 0.0)),
-    "RightFoot": ("AnkleRight", "RightLowerLeg", None),
-    "RightToes": ("FootRight", "RightFoot", None),
-}
 MIRROR = np.diag([-1.0, 1.0, 1.0])
 
 
@@ -79,32 +55,17 @@ class VmcFrames:
 
 
 def vmc_frames(plan: RetargetPlan, bonemap: BoneMap, motion: AvatarMotion) -> VmcFrames:
-    """The module docstring's local rotations and positions for every frame of `motion`."""
-    a = plan.align                                       # Kinetre facing (+Z) -> the avatar's
-    names = tuple(b for b, (kj, _, _) in BONES.items() if kj in bonemap.joints)
-    joint = {b: bonemap.joints[BONES[b][0]] for b in names}
-    rest, correction = {}, {}
-    for b in names:
-        kj, parent, tpose = BONES[b]
-        j = joint[b]
-        if tpose is not None and plan.aim_from[j] >= 0:
-            correction[b] = _min_rotation(np.array(tpose), a.T @ plan.rest_aim[j])
-        else:
-            correction[b] = correction.get(parent, np.eye(3)) if parent else np.eye(3)
-        above = plan.bind_positions[joint[parent]] if parent else np.zeros(3)
-        rest[b] = a.T @ (plan.bind_positions[j] - above)
-    t = len(motion)
-    world = {b: a.T @ motion.rotations[:, joint[b]] @ a @ correction[b] for b in names}   # R_T, facing +Z
-    positions = np.zeros((t, len(names), 3))
-    rotations = np.zeros((t, len(names), 4))
-    for k, b in enumerate(names):
-        parent = BONES[b][1]
-        local = world[b] if parent is None else np.swapaxes(world[parent], 1, 2) @ world[b]
-        rotations[:, k] = _unity_quaternion(local)
-        positions[:, k] = rest[b] @ MIRROR
-        if parent is None:
-            positions[:, k] = (motion.positions[:, joint[b]] @ a) @ MIRROR
-    return VmcFrames(names, positions, rotations)
+    """Every frame of `motion` on the normalised humanoid, mirrored into Unity's axes."""
+    return unity_frames(normalized_motion(plan, bonemap, motion))
+
+
+def unity_frames(norm: NormalizedMotion) -> VmcFrames:
+    """A normalised humanoid's frames in Unity's left-handed axes (the module docstring)."""
+    t = len(norm)
+    positions = np.repeat((norm.bind_offsets @ MIRROR)[None], t, axis=0)
+    positions[:, 0] = norm.hips @ MIRROR
+    rotations = _unity_quaternion(norm.rotations.reshape(-1, 3, 3)).reshape(t, len(norm.bones), 4)
+    return VmcFrames(norm.bones, positions, rotations)
 
 
 def unity_from_gltf_quaternion(q: np.ndarray) -> np.ndarray:
@@ -184,22 +145,6 @@ class VmcSender:
 
     def close(self) -> None:
         self.sock.close()
-
-
-def _min_rotation(u, v) -> np.ndarray:
-    """Smallest rotation taking direction u onto v (Rodrigues)."""
-    u = u / np.linalg.norm(u)
-    v = v / np.linalg.norm(v)
-    axis, c = np.cross(u, v), float(u @ v)
-    s2 = float(axis @ axis)
-    if s2 < 1e-24:
-        if c > 0:
-            return np.eye(3)
-        perp = np.cross(u, [1.0, 0.0, 0.0]) if abs(u[0]) < 0.9 else np.cross(u, [0.0, 1.0, 0.0])
-        perp /= np.linalg.norm(perp)
-        return 2.0 * np.outer(perp, perp) - np.eye(3)
-    k = np.array([[0, -axis[2], axis[1]], [axis[2], 0, -axis[0]], [-axis[1], axis[0], 0]])
-    return np.eye(3) + k + ((1.0 - c) / s2) * (k @ k)
 
 
 def _unity_quaternion(r: np.ndarray) -> np.ndarray:
