@@ -49,5 +49,7 @@ def run_scan(args: argparse.Namespace) -> int:
         return 2
     for line in result.report:  # where the surface went: frames, fusion, components, what was kept and why
         print(line)
+    for line in result.warnings:
+        print(f"kinetre scan: warning: {line}", file=sys.stderr)
     print(result.summary())
     return 0

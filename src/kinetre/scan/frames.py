@@ -71,6 +71,7 @@ class RGBDSequence:
     intrinsics : Intrinsics of the depth camera (colour is registered to depth)
     depth_scale : raw depth value per metre (1000 = millimetres, TUM uses 5000)
     layout : "tum" or "redwood"
+    scale_source : where depth_scale came from (given, or the layout's default)
     """
 
     root: Path
@@ -80,6 +81,7 @@ class RGBDSequence:
     intrinsics: Intrinsics
     depth_scale: float
     layout: str
+    scale_source: str = "given"
 
     def __len__(self) -> int:
         return len(self.depth_paths)
@@ -246,7 +248,9 @@ def open_sequence(root: str | Path, intrinsics: str | Path | Intrinsics | None =
     scale = float(depth_scale) if depth_scale is not None else (5000.0 if layout == "tum" else 1000.0)
     if not np.isfinite(scale) or scale <= 0:
         raise BadScanError(f"depth scale must be a positive number, got {depth_scale}")
-    return RGBDSequence(root, tuple(depth), tuple(color) if color else None, stamps, cam, scale, layout)
+    source = ("given" if depth_scale is not None else
+              "the TUM layout's default" if layout == "tum" else "the default for millimetre depth")
+    return RGBDSequence(root, tuple(depth), tuple(color) if color else None, stamps, cam, scale, layout, source)
 
 
 def read_frame(sequence: RGBDSequence, index: int) -> tuple[np.ndarray, np.ndarray]:

@@ -18,6 +18,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import BadScanError, ExportError
+from .depth_reading import DepthReading, depth_reading, sample_depths, size_warning
 from .frames import Intrinsics, RGBDSequence, open_sequence, read_frame
 from .features import Features, frame_features
 from .fuse import TSDFVolume
@@ -44,8 +45,12 @@ class ScanResult:
             camera, of the `before` sweep when there is one; rejected frames hold the pose tracking proposed)
     accepted : (N,) bool, the frames that were fused
     transform : (4, 4) float64 from world (camera axes, y down) to the written mesh's frame (+Y up)
-    report : lines for the terminal saying where the surface went: frames used and rejected (why), voxels
-             fused, components found and their sizes, which one was kept and why
+    report : lines for the terminal saying where the surface went: the depths read and the scale that gave
+             them, frames used and rejected (why), voxels fused, components found and their sizes, which one
+             was kept and why
+    depth : the depths read from the main sequence (depth_reading.py)
+    warnings : lines for stderr: results that do not fit what was read (a kept object too small for the
+             depths, see depth_reading.py)
     """
 
     mesh_path: Path
@@ -58,6 +63,8 @@ class ScanResult:
     accepted: np.ndarray = field(repr=False)
     transform: np.ndarray = field(repr=False)
     report: tuple = ()  # lines saying what was kept and why: frames, fusion, components
+    depth: DepthReading | None = None
+    warnings: tuple = ()
 
     def summary(self) -> str:
         """One line for the terminal."""
@@ -77,6 +84,7 @@ class _Fused:
     moved: float = 0.0  # largest change of a camera position by the optimisation (metres)
     closing_cpu: float = 0.0  # CPU seconds of loop closure and the second fusion (the rest is per frame)
     tracked: list = field(default_factory=list)  # the poses as tracked, before loop closure moved them
+    depths: list = field(default_factory=list)  # sample_depths of every frame read
 
 
 def fuse_sequence(sequence: RGBDSequence, volume: TSDFVolume, params: TrackingParams, *,
@@ -102,6 +110,7 @@ def fuse_sequence(sequence: RGBDSequence, volume: TSDFVolume, params: TrackingPa
                leave=False)
     for index in bar:
         color, depth = read_frame(sequence, index)
+        fused.depths.append(sample_depths(depth))
         if previous is None and volume.frames == 0 and tracking_model is None:
             pose, ok = (guesses[0] if guesses else np.eye(4)), True
         else:
@@ -260,7 +269,8 @@ def _scan(frames, out_path, *, segment, before, voxel, intrinsics, camera, depth
         main = fuse_sequence(sequence, volume, tracking, progress=progress)
     used += sum(main.accepted)
     rejected += len(main.accepted) - sum(main.accepted)
-    report = _tracking_report(main, len(sequence), "" if before is None else " (main sweep)")
+    reading = depth_reading(main.depths, sequence.depth_scale, sequence.scale_source, depth_max)
+    report = [reading.line()] + _tracking_report(main, len(sequence), "" if before is None else " (main sweep)")
     if before is not None:
         report = _tracking_report(pre, len(before_sequence), " (--before sweep)") + report
 
@@ -284,8 +294,8 @@ def _scan(frames, out_path, *, segment, before, voxel, intrinsics, camera, depth
                       f"{'added in' if change.object_in_after else 'taken away from'} the main sweep; "
                       f"{len(mesh.faces)} faces lie there")
     if len(mesh.faces) == 0:
-        raise BadScanError(f"{sequence.root}: no surface was reconstructed (check depth scale and depth_max "
-                           f"{depth_max} m)")
+        raise BadScanError(f"{sequence.root}: no surface was reconstructed; {reading.line()}; check the depth "
+                           f"scale ({reading.alternatives()}) and --depth-max")
     if segment == "plane":
         first = next(p for p, ok in zip(main.poses, main.accepted) if ok)
         plane = dominant_plane(main.first_view, first[:3, 3], max(1.5 * voxel, 0.01), seed)
@@ -298,6 +308,9 @@ def _scan(frames, out_path, *, segment, before, voxel, intrinsics, camera, depth
         report.append(_choice_report(choice, join))
         transform = _upright_on_plane(mesh, plane)
     mesh, dropped = remove_floaters(mesh, min_component, join)
+    if len(mesh.faces) == 0:
+        raise BadScanError(f"{sequence.root}: nothing was left of the surface after segmentation; "
+                           f"{reading.line()}; check the depth scale ({reading.alternatives()})")
     if dropped:
         report.append(f"floaters: dropped {len(dropped)} pieces (under {min_component:.0%} of the largest, or under "
                       f"{SPECK_JOINS * join * 100:.1f} cm across; faces: {_sizes(dropped)})")
@@ -308,10 +321,11 @@ def _scan(frames, out_path, *, segment, before, voxel, intrinsics, camera, depth
     extent = np.ptp(mesh.vertices, axis=0) * 100
     report.append(f"kept: {len(mesh.vertices)} vertices, {len(mesh.faces)} faces, "
                   f"{extent[0]:.0f} x {extent[1]:.0f} x {extent[2]:.0f} cm (x, y up, z)")
+    warning = size_warning(reading, float(extent.max()) / 100, sequence.intrinsics.width, sequence.intrinsics.fx)
     path = write_mesh(mesh, out_path)
     return ScanResult(path, int(used), int(rejected), len(mesh.vertices), len(mesh.faces),
                       time.perf_counter() - start, np.array(main.poses), np.array(main.accepted, bool), transform,
-                      tuple(report))
+                      tuple(report), reading, () if warning is None else (warning,))
 
 
 def _sizes(sizes: list, shown: int = 6) -> str:

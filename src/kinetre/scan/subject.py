@@ -49,8 +49,9 @@ def shape_notes(mesh: Mesh, where: str) -> tuple[str, ...]:
 
 
 def scan_subject(frames: str | os.PathLike, segment: str | None = "plane", before=None,
-                 progress: bool = True) -> tuple[Mesh, object, tuple[str, ...]]:
-    """Scan `frames` (folder or .zip) and return (mesh, the pipeline's ScanResult, notes).
+                 progress: bool = True, **options) -> tuple[Mesh, object, tuple[str, ...]]:
+    """Scan `frames` (folder or .zip) and return (mesh, the pipeline's ScanResult, notes: the scan's warnings
+    and `shape_notes`). `options` go to the scan (`voxel`, `intrinsics`, `depth_scale`, ...).
 
     Raises
     ------
@@ -70,8 +71,8 @@ def scan_subject(frames: str | os.PathLike, segment: str | None = "plane", befor
         if frames.lower().endswith(".zip"):
             if not os.path.isfile(frames):
                 raise BadScanError(f"{frames}: no such file")
-            result = scan_zip(frames, out, segment=segment, before=before, progress=progress)
+            result = scan_zip(frames, out, segment=segment, before=before, progress=progress, **options)
         else:
-            result = scan(frames, out, segment=segment, before=before, progress=progress)
+            result = scan(frames, out, segment=segment, before=before, progress=progress, **options)
         mesh = load_mesh(out)
-    return mesh, result, shape_notes(mesh, frames)
+    return mesh, result, tuple(f"{frames}: {w}" for w in result.warnings) + shape_notes(mesh, frames)
