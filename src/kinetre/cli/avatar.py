@@ -2,8 +2,9 @@
 
 Loads a rigged humanoid (glTF/GLB/VRM), maps its bones to Kinect-20 (a saved map next to it wins), retargets
 any motion source (BVH, recorded take, video) with Algorithm 1 and writes the avatar animated by its own
-joints, the take alone as a VRM Animation (.vrma, with VRM expressions from the take's face), or streams it live to a VMC receiver (`--vmc HOST:PORT`, vmc/send.py). `--write-map` saves the
-automatic map as JSON next to the avatar for hand correction.
+joints, the take alone as a VRM Animation (.vrma, with VRM expressions from the take's face), or streams it
+live to a VMC receiver (`--vmc HOST:PORT`, vmc/send.py). `--write-map` saves the automatic map as JSON next
+to the avatar for hand correction.
 """
 from __future__ import annotations
 
