@@ -99,3 +99,26 @@ def test_the_warning_compares_the_object_with_the_view_at_the_median_depth():
     depth[0, 0] = 0.0
     assert sample_depths(depth).tolist() == [1.5] * 15
     assert size_warning(DepthReading(0, 0, 0, 0, 3, 1000, "given"), 0.01, 640, 500.0) is None
+
+
+def test_animate_takes_the_scans_options_and_says_what_it_read(lamp_tum, tmp_path, data_dir, capsys):
+    walk = str(data_dir / "bvh" / "cmu_12_01_walk.bvh")
+    common = ["--motion", walk, "--max-frames", "3", "--nodes", "32", "-q"]
+    assert main(["animate", str(lamp_tum), *common, "--intrinsics", str(tmp_path / "none.json"),
+                 "-o", str(tmp_path / "x.bvh")]) == 2
+    assert "none.json: intrinsics file not found" in capsys.readouterr().err
+    assert main(["animate", str(lamp_tum), *common, "--voxel", "0.5", "-o", str(tmp_path / "x.bvh")]) == 2
+    assert "voxel size must be in (0, 0.2]" in capsys.readouterr().err
+
+    assert main(["animate", str(lamp_tum), "--motion", walk, "--max-frames", "3", "--nodes", "32",
+                 "-o", str(tmp_path / "wrong.bvh")]) == 0
+    captured = capsys.readouterr()
+    assert "at depth scale 5000 raw units per metre (the TUM layout's default)" in captured.out
+    assert "kinetre: warning:" in captured.err and "--depth-scale 1000 reads the median at" in captured.err
+
+    assert main(["animate", str(lamp_tum), "--motion", walk, "--max-frames", "3", "--nodes", "32",
+                 "--depth-scale", "1000", "--intrinsics", str(lamp_tum / "intrinsics.json"), "--voxel", "0.012",
+                 "-o", str(tmp_path / "right.bvh")]) == 0
+    captured = capsys.readouterr()
+    near, far, median, scale, origin = RANGE.search(captured.out).groups()
+    assert int(scale) == 1000 and origin == "given" and "warning" not in captured.err

@@ -30,6 +30,11 @@ def register(sub) -> None:
                    help="RGB-D input: how the scan cuts out the object (default plane)")
     p.add_argument("--before", default=None, metavar="DIR",
                    help="RGB-D input with --segment change: frames of the same place without the object")
+    p.add_argument("--depth-scale", type=float, default=None, metavar="S",
+                   help="RGB-D input: raw depth units per metre (default 1000; 5000 for a TUM layout)")
+    p.add_argument("--intrinsics", default=None, metavar="FILE",
+                   help="RGB-D input: Open3D PinholeCameraIntrinsic JSON or 3x3 matrix TXT (default: the folder's)")
+    p.add_argument("--voxel", type=float, default=None, help="RGB-D input: TSDF voxel size in metres (default 0.006)")
     p.add_argument("-o", "--output", required=True, help=f"output: {' '.join(ANIMATE_OUTPUTS)}")
     p.add_argument("--nodes", type=int, default=128, help="graph nodes (default 128)")
     p.add_argument("--seed", type=int, default=0, help="graph sampling seed (default 0)")
@@ -93,15 +98,22 @@ def _animate(args, stats: dict | None) -> int:
     from ..scan.subject import is_frames
     if is_frames(args.mesh):  # RGB-D frames: scan (plane segmentation by default), then rig and animate
         from ..scan.subject import scan_subject
+        options = {k: v for k, v in (("depth_scale", args.depth_scale), ("intrinsics", args.intrinsics),
+                                     ("voxel", args.voxel)) if v is not None}
         mesh, scanned, scan_notes = scan_subject(args.mesh, None if args.segment == "none" else args.segment,
-                                                 args.before, progress=not args.quiet and sys.stderr.isatty())
+                                                 args.before, progress=not args.quiet and sys.stderr.isatty(),
+                                                 **options)
         say(f"scanned {args.mesh}: {scanned.frames_used} frames used, {scanned.frames_rejected} rejected, "
-            f"{scanned.seconds:.1f} s")
+            f"{scanned.seconds:.1f} s; {scanned.depth.line()}")
+        for warning in scanned.warnings:
+            print(f"kinetre: warning: {args.mesh}: {warning}", file=sys.stderr)
         for note in scan_notes:
             print(f"kinetre: note: {note}", file=sys.stderr)
     else:
-        if args.before is not None or args.segment != "plane":
-            raise UsageError("--segment and --before apply when the input is RGB-D frames (a folder or .zip)")
+        if (args.before is not None or args.segment != "plane" or args.depth_scale is not None
+                or args.intrinsics is not None or args.voxel is not None):
+            raise UsageError("--segment, --before, --depth-scale, --intrinsics and --voxel apply when the input "
+                             "is RGB-D frames (a folder or .zip)")
         mesh = kinetre.load_mesh(args.mesh)
     take = take.slice(frames.start or 0, frames.stop)
     fps = args.fps if args.fps is not None else min(take.fps, 30.0)

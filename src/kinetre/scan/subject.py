@@ -50,8 +50,8 @@ def shape_notes(mesh: Mesh, where: str) -> tuple[str, ...]:
 
 def scan_subject(frames: str | os.PathLike, segment: str | None = "plane", before=None,
                  progress: bool = True, **options) -> tuple[Mesh, object, tuple[str, ...]]:
-    """Scan `frames` (folder or .zip) and return (mesh, the pipeline's ScanResult, notes: the scan's warnings
-    and `shape_notes`). `options` go to the scan (`voxel`, `intrinsics`, `depth_scale`, ...).
+    """Scan `frames` (folder or .zip) and return (mesh, the pipeline's ScanResult, `shape_notes`); the scan's
+    own warnings are on the result. `options` go to the scan (`voxel`, `intrinsics`, `depth_scale`, ...).
 
     Raises
     ------
@@ -75,4 +75,4 @@ def scan_subject(frames: str | os.PathLike, segment: str | None = "plane", befor
         else:
             result = scan(frames, out, segment=segment, before=before, progress=progress, **options)
         mesh = load_mesh(out)
-    return mesh, result, tuple(f"{frames}: {w}" for w in result.warnings) + shape_notes(mesh, frames)
+    return mesh, result, shape_notes(mesh, frames)
