@@ -65,8 +65,6 @@ class NormalizedMotion:
         Unity HumanBodyBones names, parents before children (`BONES` gives each one's parent).
     rest : (B, 3) float64
         T-pose offset of each bone from its parent (the hips': their place above the floor).
-    bind_offsets : (B, 3) float64
-        The same offsets in the bind pose, turned to face +Z.
     hips : (T, 3) float64
         The hips' place per frame, above the floor.
     rotations : (T, B, 3, 3) float64
@@ -75,7 +73,6 @@ class NormalizedMotion:
 
     bones: tuple
     rest: np.ndarray
-    bind_offsets: np.ndarray
     hips: np.ndarray
     rotations: np.ndarray
 
@@ -113,8 +110,7 @@ def normalized_motion(plan: RetargetPlan, bonemap: BoneMap, motion: AvatarMotion
         parent = BONES[b][1]
         rotations[:, k] = world[b] if parent is None else np.swapaxes(world[parent], 1, 2) @ world[b]
     hips = (motion.positions[:, joint[names[0]]] - floor) @ a
-    return NormalizedMotion(names, np.array([rest[b] for b in names]), np.array([bind[b] for b in names]),
-                            hips, rotations)
+    return NormalizedMotion(names, np.array([rest[b] for b in names]), hips, rotations)
 
 
 def _min_rotation(u, v) -> np.ndarray:

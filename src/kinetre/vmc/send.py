@@ -5,8 +5,9 @@ Per frame, in this order: `/VMC/Ext/OK` (loaded, calibrated, tracking), `/VMC/Ex
 `/VMC/Ext/Blend/Val` per blendshape, then `/VMC/Ext/Blend/Apply`; each frame is one OSC bundle.
 
 Rotations are the normalised humanoid's (avatar/normalized.py): local to the nearest sent parent and
-relative to the T-pose, which is a VMC receiver's rest. Positions: the bind-pose offsets, the hips' their
-place above the floor.
+relative to the T-pose, which is a VMC receiver's rest. Positions: the T-pose offsets from that parent (so
+composing them down the hierarchy with the rotations gives the posed joints), the hips' their place above
+the floor.
 
 Axes. The normalised humanoid faces +Z with its left on +X (glTF/VRM 1.0 style); Unity's left-handed frame
 faces +Z with the left on −X: positions (x, y, z) → (−x, y, z), unit quaternions (x, y, z, w) → (x, −y, −z, w)
@@ -62,7 +63,7 @@ def vmc_frames(plan: RetargetPlan, bonemap: BoneMap, motion: AvatarMotion) -> Vm
 def unity_frames(norm: NormalizedMotion) -> VmcFrames:
     """A normalised humanoid's frames in Unity's left-handed axes (the module docstring)."""
     t = len(norm)
-    positions = np.repeat((norm.bind_offsets @ MIRROR)[None], t, axis=0)
+    positions = np.repeat((norm.rest @ MIRROR)[None], t, axis=0)
     positions[:, 0] = norm.hips @ MIRROR
     rotations = _unity_quaternion(norm.rotations.reshape(-1, 3, 3)).reshape(t, len(norm.bones), 4)
     return VmcFrames(norm.bones, positions, rotations)

@@ -1,0 +1,76 @@
+"""`kinetre studio --vmc-listen PORT`: VMC performers (XR Animator, VSeeFace, a phone app) as studio users.
+
+Each performer (told apart by the address its packets come from) becomes a user "vmc<n>" whose skeleton
+frames go on its own subject, exactly as a webcam page's do, so the scene, the other pages and the avatars
+see one more person. A performer possesses the mesh when it starts, as the sample motion does (fitted to the
+mesh, taking over from the sample; a live user who already possesses keeps it and the two add up).
+"""
+from __future__ import annotations
+
+import asyncio
+import logging
+
+from ..errors import KinetreError
+from ..skeleton.models import Skeleton
+from ..vmc.receive import VmcListener
+from .channels import Channels, Frame
+from .protocol import skeleton_json
+from .scene import now_ms, skeleton_subject
+
+log = logging.getLogger("kinetre.studio")
+RETRY_S = 0.5  # a possession refused (no frame in the scene yet) is tried again after this long
+
+
+class VmcUsers:
+    """A VMC listener whose performers publish skeleton frames and possess through `command(client, msg)`
+    (the scene host's command entry: {"type": "fit"} then {"type": "possess"})."""
+
+    def __init__(self, hub: Channels, command, host: str = "127.0.0.1", port: int = 39539):
+        self.hub, self.command = hub, command
+        self.listener = VmcListener(self.receive, host, port)
+        self.clients: dict = {}            # performer address -> client name
+        self.seq: dict[str, int] = {}
+        self.possessed: set[str] = set()
+        self.trying: dict[str, float] = {}  # client -> loop time of its last possession attempt
+        self.tasks: set[asyncio.Task] = set()
+
+    async def start(self) -> None:
+        await self.listener.start()
+
+    @property
+    def port(self) -> int:
+        return self.listener.port
+
+    def client(self, address) -> str:
+        if address not in self.clients:
+            self.clients[address] = f"vmc{len(self.clients) + 1}"
+        return self.clients[address]
+
+    def receive(self, address, skeleton: Skeleton) -> None:
+        client = self.client(address)
+        seq = self.seq[client] = self.seq.get(client, 0) + 1
+        t = now_ms()
+        self.hub.publish(Frame(skeleton_subject(client), seq, t, skeleton_json(client, seq, t, skeleton),
+                               (seq, t, skeleton)))
+        loop = asyncio.get_running_loop()
+        if client not in self.possessed and loop.time() - self.trying.get(client, -RETRY_S) >= RETRY_S:
+            self.trying[client] = loop.time()
+            task = loop.create_task(self._possess(client))
+            self.tasks.add(task)
+            task.add_done_callback(self.tasks.discard)
+
+    async def _possess(self, client: str) -> None:
+        await asyncio.sleep(0.05)  # the scene takes the first frame from the bus first
+        try:
+            await self.command(client, {"type": "fit"})
+            await self.command(client, {"type": "possess"})
+        except KinetreError as exc:
+            log.info("VMC performer %s cannot possess yet: %s", client, exc)
+            return
+        self.possessed.add(client)
+        log.info("VMC performer %s possesses the mesh", client)
+
+    def close(self) -> None:
+        self.listener.close()
+        for task in self.tasks:
+            task.cancel()
