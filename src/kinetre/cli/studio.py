@@ -14,11 +14,23 @@ def register(sub) -> None:
     add_room_options(p)
     p.add_argument("--remote-scene", action="store_true",
                    help="no scene in this server: a `kinetre scene` process on the same NATS room solves")
+    p.add_argument("--vmc", default=None, metavar="HOST:PORT",
+                   help="every avatar sends its live pose as VMC (avatar n to PORT + n - 1; docs/vmc.md)")
+    p.add_argument("--vmc-listen", default=None, metavar="[HOST:]PORT",
+                   help="VMC performers sending here (UDP, 127.0.0.1 by default) become users who possess the mesh")
     p.set_defaults(func=cmd_studio)
 
 
 def cmd_studio(args) -> int:
     from ..studio.app import run_studio
+    from ..vmc.receive import listen_address
+    from ..vmc.send import VmcSender, parse_address
+    vmc = None
+    if args.vmc is not None:
+        vmc = parse_address(args.vmc)
+        VmcSender(*vmc).close()                    # an address that does not resolve fails now, not per frame
+    vmc_listen = listen_address(args.vmc_listen) if args.vmc_listen is not None else None
     run_studio(args.mesh, host=args.host, port=args.port, open_browser=not args.no_browser, nats=args.nats,
-               room=args.room, token=room_token(args), remote_scene=args.remote_scene, nkey=args.nkey)
+               room=args.room, token=room_token(args), remote_scene=args.remote_scene, nkey=args.nkey, vmc=vmc,
+               vmc_listen=vmc_listen)
     return 0

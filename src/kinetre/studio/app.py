@@ -10,12 +10,15 @@ and state go back out through the bus to every viewer.
     /api/…                     state, meshes, jobs, voice, takes, joint maps (routes.py)
     /api/avatar, /api/avatars/…  rigged humanoid avatars beside the possessed mesh (avatars.py)
     /api/face/…                face puppets (face_routes.py)
+    UDP (optional)             VMC out: every avatar's pose to a receiver (vmc_out.py); VMC in: performers as
+                               users (vmc_in.py)
 """
 from __future__ import annotations
 
 import asyncio
 import contextlib
 import itertools
+import json
 import secrets
 import threading
 import webbrowser
@@ -44,6 +47,9 @@ from .routes import api_routes
 from .scene import Scene
 from .solve_worker import SolveWorker, freeze_heap
 from .viewer import Viewer
+from ..vmc.receive import check_listen
+from .vmc_in import VmcUsers
+from .vmc_out import VmcOut
 
 
 def static_dir() -> Path:
@@ -52,13 +58,15 @@ def static_dir() -> Path:
 
 def create_app(mesh_path: str | None = None, nodes: int = NODES, sample_motion: bool = True, *,
                nats: str | None = None, room: str = "main", token: str | None = None,
-               remote_scene: bool = False, nkey: str | None = None) -> Starlette:
+               remote_scene: bool = False, nkey: str | None = None, vmc: tuple[str, int] | None = None,
+               vmc_listen: tuple[str, int] | None = None) -> Starlette:
     """The studio as an ASGI app (tests run it under uvicorn on 127.0.0.1).
 
     With `nats` (a NATS server URL) the channels are that server's subjects for `room` (natsbus.py);
     with `remote_scene` too, the scene is a `kinetre scene` process elsewhere and this server is only
     the pages' gateway to it (remote.py). A `token` is required from every client (access.py); `nkey`, the
-    room's nkey seed file, then authenticates to NATS instead of the token.
+    room's nkey seed file, then authenticates to NATS instead of the token. `vmc` (host, port): the avatars
+    send VMC there (vmc_out.py); `vmc_listen` (host, port): VMC performers there become users (vmc_in.py).
     """
     hub = NatsChannels(room) if nats else Hub()
     host: SceneHost
@@ -78,14 +86,25 @@ def create_app(mesh_path: str | None = None, nodes: int = NODES, sample_motion: 
     names = itertools.count(1)
     prefix = f"{secrets.token_hex(2)}-" if nats else ""  # client names unique across studios of a room
     framing = Framing()  # each transform block framed once for all pages
+    vmc_out = VmcOut(hub, shelf, *vmc) if vmc is not None else None
+    vmc_users = VmcUsers(hub, possess_command(host), *vmc_listen) if vmc_listen is not None else None
+    bridges: list[asyncio.Task] = []
 
     @contextlib.asynccontextmanager
     async def lifespan(app):
         if nats:
             await hub.start(nats, token, name="kinetre-studio", nkey=nkey)
         await host.start()
+        if vmc_out is not None:
+            bridges.append(asyncio.get_running_loop().create_task(vmc_out.run()))
+        if vmc_users is not None:
+            await vmc_users.start()
         freeze_heap()  # start-up's objects (mesh, kernels, modules) out of every later full collection
         yield
+        for task in bridges:
+            task.cancel()
+        if vmc_users is not None:
+            vmc_users.close()
         await host.close()
         if nats:
             await hub.close()
@@ -113,14 +132,24 @@ def create_app(mesh_path: str | None = None, nodes: int = NODES, sample_motion: 
     app = Starlette(routes=routes, lifespan=lifespan,
                     middleware=[Middleware(RawSockets), Middleware(TokenGate, room=room, token=token)])
     app.state.host = host
+    app.state.vmc_out, app.state.vmc_users = vmc_out, vmc_users
     return app
+
+
+def possess_command(host: SceneHost):
+    """command(client, msg) for VMC performers: a page's command, as JSON through the scene host."""
+    async def command(client: str, msg: dict) -> None:
+        await host.command(client, msg, json.dumps(msg).encode())
+    return command
 
 
 def run_studio(mesh_path: str | None, host: str = "127.0.0.1", port: int = 8000, open_browser: bool = True,
                nodes: int = NODES, sample_motion: bool = True, *, nats: str | None = None, room: str = "main",
-               token: str | None = None, remote_scene: bool = False, nkey: str | None = None) -> None:
+               token: str | None = None, remote_scene: bool = False, nkey: str | None = None,
+               vmc: tuple[str, int] | None = None, vmc_listen: tuple[str, int] | None = None) -> None:
     """Serve the studio until interrupted (what `kinetre studio` runs). Raises KinetreError on a bad mesh,
-    an unreachable or refusing NATS server, or a non-loopback `host` without a `token`.
+    an unreachable or refusing NATS server, a non-loopback `host` without a `token`, or a VMC port that
+    cannot be listened on.
 
     Without `mesh_path` the sample mesh (Spot) is loaded and, with `sample_motion`, a CMU walk drives it.
     """
@@ -128,8 +157,10 @@ def run_studio(mesh_path: str | None, host: str = "127.0.0.1", port: int = 8000,
     check_bind(host, token)
     if nats:
         asyncio.run(probe_nats(nats, room, token, nkey))  # a clear error now rather than a traceback at startup
+    if vmc_listen is not None:
+        check_listen(*vmc_listen)
     app = create_app(mesh_path, nodes, sample_motion, nats=nats, room=room, token=token, remote_scene=remote_scene,
-                     nkey=nkey)
+                     nkey=nkey, vmc=vmc, vmc_listen=vmc_listen)
     url = f"http://{'127.0.0.1' if host in ('0.0.0.0', '::') else host}:{port}/"
     if token:
         url += f"?token={token}"

@@ -13,9 +13,9 @@ import logging
 from ..errors import KinetreError
 from ..skeleton.models import Skeleton
 from ..vmc.receive import VmcListener
-from .channels import Channels, Frame
+from .channels import Channels, Frame, now_ms
 from .protocol import skeleton_json
-from .scene import now_ms, skeleton_subject
+from .subjects import skeleton_subject
 
 log = logging.getLogger("kinetre.studio")
 RETRY_S = 0.5  # a possession refused (no frame in the scene yet) is tried again after this long

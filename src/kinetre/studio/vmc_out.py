@@ -20,7 +20,7 @@ from ..vmc.send import VmcSender, frame_bundle, vmc_frames
 from .avatars import Shelf
 from .channels import Channels
 from .protocol import ProtocolError, parse_message, parse_skeleton
-from .scene import SKELETONS
+from .subjects import SKELETONS, last_token
 
 log = logging.getLogger("kinetre.studio")
 STALE_S = 1.0  # another source may drive once the current one has been silent this long (as the page)
@@ -85,7 +85,7 @@ class VmcOut:
                         parse_skeleton(parse_message(frame.data))[2]
                 except ProtocolError:
                     continue
-                self.offer(frame.subject.rsplit(".", 1)[-1], skeleton)
+                self.offer(last_token(frame.subject), skeleton)
         finally:
             sub.close()
             self.close()

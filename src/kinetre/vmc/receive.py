@@ -135,6 +135,27 @@ def _numbers(values) -> np.ndarray | None:
     return out if np.isfinite(out).all() else None
 
 
+def listen_address(text: str) -> tuple[str, int]:
+    """`--vmc-listen PORT` or `HOST:PORT` -> (host, port); the host defaults to 127.0.0.1 (this machine only)."""
+    from .send import parse_address
+    if text.strip().isdigit():
+        text = ":" + text.strip()
+    return parse_address(text, "--vmc-listen")
+
+
+def check_listen(host: str, port: int) -> None:
+    """Raise KinetreError now when UDP `host:port` cannot be listened on (in use, not this machine's)."""
+    import socket
+
+    from ..errors import KinetreError
+    try:
+        family = socket.getaddrinfo(host, port, type=socket.SOCK_DGRAM)[0][0]
+        with socket.socket(family, socket.SOCK_DGRAM) as probe:
+            probe.bind((host, port))
+    except OSError as e:
+        raise KinetreError(f"--vmc-listen {host}:{port}: cannot listen there ({e.strerror or e})") from None
+
+
 class VmcListener:
     """A python-osc UDP server that turns each performer's packets into skeletons.
 

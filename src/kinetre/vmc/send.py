@@ -100,15 +100,15 @@ def frame_bundle(frames: VmcFrames, k: int, seconds: float, blend: dict | None =
     return bundle.build().dgram
 
 
-def parse_address(text: str) -> tuple[str, int]:
+def parse_address(text: str, option: str = "--vmc") -> tuple[str, int]:
     """"HOST:PORT", "HOST" or ":PORT" -> (host, port); the defaults are 127.0.0.1 and 39539."""
     host, _, port = text.rpartition(":") if ":" in text else (text, "", "")
     try:
         number = int(port) if port else PORT
     except ValueError:
-        raise KinetreError(f"--vmc {text}: the port must be a number (HOST:PORT)") from None
+        raise KinetreError(f"{option} {text}: the port must be a number (HOST:PORT)") from None
     if not 0 < number < 65536:
-        raise KinetreError(f"--vmc {text}: the port must be 1..65535")
+        raise KinetreError(f"{option} {text}: the port must be 1..65535")
     return host or "127.0.0.1", number
 
 
