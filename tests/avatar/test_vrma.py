@@ -124,3 +124,27 @@ def test_bad_targets_are_named(tmp_path, rigged, walk):
         write_vrma(tmp_path / "x.glb", norm, 30.0)
     with pytest.raises(ExportError, match="'aa' needs 3 finite weights"):
         write_vrma(tmp_path / "x.vrma", norm, 30.0, ({"aa": np.array([0.0, np.nan, 1.0])}, {}))
+
+
+def test_a_take_with_a_face_writes_vrm_expressions_through_the_cli(tmp_path, capsys, data_dir, walk):
+    from kinetre.motion.stream import write_stream
+    from kinetre.motion.take import Take
+    t = 12
+    names = ("_neutral", "jawOpen", "mouthSmileLeft", "mouthSmileRight", "cheekPuff")
+    faces = np.stack([np.zeros(t), np.linspace(0, 1, t), np.full(t, 0.2), np.full(t, 0.6), np.full(t, 0.3)], 1)
+    faces[4] = np.nan                                                # a frame where the face is lost
+    take = Take(walk.model, walk.positions[:t], walk.tracked[:t], 30.0, "face", people=(0,),
+                crowd_positions=walk.positions[:t, None], crowd_tracked=walk.tracked[:t, None],
+                blendshapes=faces[:, None], blendshape_names=names)
+    path = tmp_path / "face.kinetre.jsonl"
+    write_stream(path, take)
+    out = tmp_path / "face.vrma"
+    assert main(["avatar", str(data_dir / "avatars" / "RiggedFigure.glb"), "--motion", str(path), "-o", str(out)]) == 0
+    assert "VRM expressions: 2 presets, 1 custom" in capsys.readouterr().out
+    got = play(out, [k / 30 for k in range(t)])
+    assert got["frames"] == t and set(got["presets"]) == {"aa", "happy"} and got["custom"] == ["cheekPuff"]
+    aa = [p["weights"]["aa"] for p in got["poses"]]
+    expected = np.linspace(0, 1, t)
+    expected[4] = expected[3]                                        # held through the lost frame
+    assert np.allclose(aa, expected, atol=1e-5)
+    assert np.allclose([p["weights"]["happy"] for p in got["poses"]], 0.4, atol=1e-5)
