@@ -90,3 +90,34 @@ def test_a_known_elbow_bend_is_a_quarter_turn_towards_unity_forward(rigged, walk
     bend = Rotation.from_matrix(upper.T @ lower).magnitude()
     assert abs(np.degrees(bend) - 90.0) < 2.0
     assert np.allclose(lower @ [-1.0, 0.0, 0.0], [0.0, 0.0, 1.0], atol=0.03)
+
+
+def test_a_takes_face_streams_as_vrm_blendshape_clips(tmp_path, capsys, data_dir, walk):
+    from kinetre.motion.stream import write_stream
+    from kinetre.motion.take import Take
+    t = 6
+    names = ("_neutral", "jawOpen", "eyeBlinkLeft", "eyeBlinkRight", "cheekPuff")
+    faces = np.stack([np.zeros(t), np.linspace(0, 1, t), np.full(t, 0.9), np.full(t, 0.5), np.full(t, 0.25)], 1)
+    take = Take(walk.model, walk.positions[:t], walk.tracked[:t], 30.0, "face", people=(0,),
+                crowd_positions=walk.positions[:t, None], crowd_tracked=walk.tracked[:t, None],
+                blendshapes=faces[:, None], blendshape_names=names)
+    path = tmp_path / "face.kinetre.jsonl"
+    write_stream(path, take)
+    sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    sock.bind(("127.0.0.1", 0))
+    bundles, stop = [], threading.Event()
+    thread = threading.Thread(target=receive, args=(sock, bundles, stop), daemon=True)
+    thread.start()
+    code = main(["avatar", str(data_dir / "avatars" / "RiggedFigure.glb"), "--motion", str(path),
+                 "--vmc", f"127.0.0.1:{sock.getsockname()[1]}"])
+    stop.set()
+    thread.join()
+    sock.close()
+    assert code == 0 and "5 blendshapes" in capsys.readouterr().out
+    assert len(bundles) == t
+    for k, messages in enumerate(bundles):
+        blend = {p[0]: p[1] for a, p in messages if a == "/VMC/Ext/Blend/Val"}
+        assert set(blend) == {"A", "Blink", "Blink_L", "Blink_R", "cheekPuff"}
+        assert abs(blend["A"] - k / (t - 1)) < 1e-6 and abs(blend["Blink"] - 0.5) < 1e-6
+        assert abs(blend["Blink_L"] - 0.4) < 1e-6 and blend["Blink_R"] == 0.0
+        assert [a for a, _ in messages][-1] == "/VMC/Ext/Blend/Apply"

@@ -86,13 +86,17 @@ def cmd_avatar(args) -> int:
     motion = retarget(plan, take.positions, take.tracked)
     motion, morphs = hands_and_face(avatar, bonemap, plan, motion, take, say)
     if args.vmc is not None:
-        from ..vmc.send import VmcSender, parse_address, vmc_frames
+        from ..avatar.expressions import vrm_expressions
+        from ..vmc.send import VmcSender, blend_frames, parse_address, vmc_frames
         host, port = parse_address(args.vmc)
         frames = vmc_frames(plan, bonemap, motion)
+        faces = take.main_blendshapes()
+        blend = None if faces is None else blend_frames(vrm_expressions(take.blendshape_names, faces))
         sender = VmcSender(host, port)
-        say(f"streaming {len(take)} frames at {take.fps:g} fps to VMC {host}:{port} ({len(frames.bones)} bones)")
+        say(f"streaming {len(take)} frames at {take.fps:g} fps to VMC {host}:{port} ({len(frames.bones)} bones"
+            f"{'' if blend is None else f', {len(blend[0])} blendshapes'})")
         try:
-            sender.stream(frames, take.fps)
+            sender.stream(frames, take.fps, blend)
         finally:
             sender.close()
         say(f"sent {sender.sent} VMC frames from {args.motion} ({time.perf_counter() - t0:.1f} s)")

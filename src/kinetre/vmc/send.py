@@ -9,6 +9,11 @@ relative to the T-pose, which is a VMC receiver's rest. Positions: the T-pose of
 composing them down the hierarchy with the rotations gives the posed joints), the hips' their place above
 the floor.
 
+Face. `/VMC/Ext/Blend/Val` names are a receiver's blendshape clips: VRM 0.x's preset names (A, I, U, E, O,
+Blink, Blink_L, Blink_R, Joy, Angry, Sorrow, Fun, LookUp...; `BLEND_NAMES`) for the VRM 1.0 expressions a
+face's ARKit weights make (avatar/expressions.py), and the other ARKit names as they are, which
+"perfect sync" avatars have as clips of their own.
+
 Axes. The normalised humanoid faces +Z with its left on +X (glTF/VRM 1.0 style); Unity's left-handed frame
 faces +Z with the left on −X: positions (x, y, z) → (−x, y, z), unit quaternions (x, y, z, w) → (x, −y, −z, w)
 (the mirror M = diag(−1, 1, 1) maps R to M R M).
@@ -25,10 +30,15 @@ from ..avatar.normalized import BONES, NormalizedMotion, normalized_motion
 from ..avatar.retarget import AvatarMotion, RetargetPlan
 from ..errors import KinetreError
 
-__all__ = ["BONES", "MIRROR", "PORT", "VmcFrames", "VmcSender", "frame_bundle", "parse_address",
-           "unity_frames", "vmc_frames"]
+__all__ = ["BLEND_NAMES", "BONES", "MIRROR", "PORT", "VmcFrames", "VmcSender", "blend_frames", "frame_bundle",
+           "parse_address", "unity_frames", "vmc_frames"]
 
-PORT = 39539  # the VMC performer's default ("Marionette") port
+PORT = 39539
+# VRM 1.0 expression -> the VRM 0.x blendshape clip name VMC receivers (VSeeFace, Warudo) know it by
+BLEND_NAMES = {"aa": "A", "ih": "I", "ou": "U", "ee": "E", "oh": "O", "blink": "Blink", "blinkLeft": "Blink_L",
+               "blinkRight": "Blink_R", "happy": "Joy", "angry": "Angry", "sad": "Sorrow", "relaxed": "Fun",
+               "surprised": "Surprised", "lookUp": "LookUp", "lookDown": "LookDown", "lookLeft": "LookLeft",
+               "lookRight": "LookRight"}  # the VMC performer's default ("Marionette") port
 
 MIRROR = np.diag([-1.0, 1.0, 1.0])
 
@@ -67,6 +77,14 @@ def unity_frames(norm: NormalizedMotion) -> VmcFrames:
     positions[:, 0] = norm.hips @ MIRROR
     rotations = _unity_quaternion(norm.rotations.reshape(-1, 3, 3)).reshape(t, len(norm.bones), 4)
     return VmcFrames(norm.bones, positions, rotations)
+
+
+def blend_frames(expressions: tuple[dict, dict]) -> list[dict]:
+    """({VRM 1.0 preset: (T,)}, {custom: (T,)}) weights -> per frame {VMC blendshape name: weight}."""
+    preset, custom = expressions
+    named = {BLEND_NAMES.get(k, k): w for k, w in preset.items()} | dict(custom)
+    t = len(next(iter(named.values()))) if named else 0
+    return [{name: float(w[k]) for name, w in named.items()} for k in range(t)]
 
 
 def unity_from_gltf_quaternion(q: np.ndarray) -> np.ndarray:
