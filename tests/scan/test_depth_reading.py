@@ -21,7 +21,7 @@ RANGE = re.compile(r"depth: read ([\d.]+)-([\d.]+) m \(median ([\d.]+) m\) at de
                    r"metre \(([^)]*)\)")
 
 
-def as_tum(folder: Path, color: str = "color", suffix: str = ".png") -> Path:
+def as_tum(folder: Path, color: str = "color") -> Path:
     """Add TUM's rgb.txt and depth.txt to a Redwood folder (same files, TUM layout; its depth stays in mm)."""
     depth = sorted((folder / "depth").iterdir())
     color_files = sorted((folder / color).iterdir())
@@ -44,7 +44,7 @@ def test_redwood_frames_in_a_tum_folder_report_the_range_read_at_tums_scale(tmp_
     for name in ("color", "depth"):
         (folder / name).symlink_to(source / name)
     (folder / "intrinsics.json").write_bytes((source / "camera_primesense.json").read_bytes())
-    as_tum(folder, suffix=".jpg")
+    as_tum(folder)
     assert main(["scan", str(folder), "-o", str(tmp_path / "room.ply"), "--quiet"]) == 0
     out = capsys.readouterr().out
     near, far, median, scale, origin = RANGE.search(out).groups()

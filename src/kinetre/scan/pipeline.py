@@ -321,7 +321,8 @@ def _scan(frames, out_path, *, segment, before, voxel, intrinsics, camera, depth
     extent = np.ptp(mesh.vertices, axis=0) * 100
     report.append(f"kept: {len(mesh.vertices)} vertices, {len(mesh.faces)} faces, "
                   f"{extent[0]:.0f} x {extent[1]:.0f} x {extent[2]:.0f} cm (x, y up, z)")
-    warning = size_warning(reading, float(extent.max()) / 100, sequence.intrinsics.width, sequence.intrinsics.fx)
+    warning = size_warning(reading, float(np.ptp(mesh.vertices, axis=0).max()), sequence.intrinsics.width,
+                           sequence.intrinsics.fx)
     path = write_mesh(mesh, out_path)
     return ScanResult(path, int(used), int(rejected), len(mesh.vertices), len(mesh.faces),
                       time.perf_counter() - start, np.array(main.poses), np.array(main.accepted, bool), transform,
