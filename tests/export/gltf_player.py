@@ -262,6 +262,17 @@ class GltfFile:
                                if s.inverseBindMatrices is not None else np.tile(np.eye(4), (len(s.joints), 1, 1)))
         return self._ibm[skin]
 
+    def joint_weights(self) -> dict[int, float]:
+        """Total skin weight of each joint node over every skinned piece (joints that move no vertex: 0)."""
+        total = {j: 0.0 for j in self.skin_joints()}
+        for piece, (_, _, joints, weights) in zip(self.pieces, self._prims):
+            if joints is not None:
+                skin = self.doc.skins[self.doc.nodes[piece.node].skin].joints
+                sums = np.bincount(joints.ravel(), weights=weights.ravel(), minlength=len(skin))
+                for j, w in zip(skin, sums):
+                    total[j] += float(w)
+        return total
+
     def skin_joints(self) -> list[int]:
         """The joint nodes of every skin (each once, in skin order)."""
         out: list[int] = []
