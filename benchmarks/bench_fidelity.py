@@ -172,8 +172,9 @@ def main() -> None:
     with tempfile.TemporaryDirectory(prefix="kinetre-fidelity-") as tmp:
         work = Path(tmp)
         for path, kind in todo:
-            names = args.anim or [a.name or str(i) for i, a in enumerate(GltfFile(path).doc.animations)]
-            clips = [Clip(path, anim, args.frames) for anim in names]
+            player = GltfFile(path)
+            names = args.anim or [a.name or str(i) for i, a in enumerate(player.doc.animations)]
+            clips = [Clip(player, anim, args.frames) for anim in names]
             for clip in clips:
                 if "animate" in methods:
                     print(json.dumps(animate_row(clip, kind, work, args.animate_args.split())), flush=True)

@@ -45,9 +45,10 @@ class Clip:
     """One animation of a rigged file, posed by the independent player at the frames a Kinetre command
     samples it at (start + i / RATE), at most `frames` of them compared."""
 
-    def __init__(self, path, anim: str | int, frames: int, rate: float = RATE):
-        self.path = Path(path)
-        self.player = player = GltfFile(path)
+    def __init__(self, source, anim: str | int, frames: int, rate: float = RATE):
+        """source: the file's path, or its GltfFile (one read for all of a file's clips)."""
+        self.player = player = source if isinstance(source, GltfFile) else GltfFile(source)
+        self.path = player.path
         self.anim = anim
         self.name = player.doc.animations[player.animation_index(anim)].name or str(anim)
         self.start, end = player.time_range(anim)

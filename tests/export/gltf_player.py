@@ -1,5 +1,5 @@
-"""An independent glTF 2.0 player for the tests and the fidelity benchmark: reads a file with pygltflib and
-poses it the way the glTF 2.0 specification tells a player to, with numpy only.
+"""An independent glTF 2.0 player for the tests and the fidelity benchmark: reads a file and poses it the way
+the glTF 2.0 specification tells a player to, with numpy only.
 
 * every node's local matrix is T · R · S (or its `matrix`), animated channels overriding the rest values;
   world matrices run down the whole node hierarchy of the default scene;
@@ -10,18 +10,19 @@ poses it the way the glTF 2.0 specification tells a player to, with numpy only.
 * morph targets add  sum_t weight_t · delta_t  before skinning; the weights come from the node, else the
   mesh, and are overridden by a `weights` channel.
 
-Nothing here imports Kinetre: it decodes accessors and interpolates animations itself, so a mistake in an
-exporter or loader cannot be cancelled by the same mistake in the check.
+Nothing here imports Kinetre (nor a glTF library): it reads the JSON, decodes accessors and interpolates
+animations itself, so a mistake in an exporter or loader cannot be cancelled by the same mistake in the check.
 """
 from __future__ import annotations
 
 import base64
+import json
+import struct
 from dataclasses import dataclass
 from pathlib import Path
 from typing import NamedTuple
 
 import numpy as np
-import pygltflib as gl
 
 _DTYPES = {5120: np.int8, 5121: np.uint8, 5122: np.int16, 5123: np.uint16, 5125: np.uint32, 5126: np.float32}
 _WIDTH = {"SCALAR": 1, "VEC2": 2, "VEC3": 3, "VEC4": 4, "MAT2": 4, "MAT3": 9, "MAT4": 16}
@@ -60,8 +61,7 @@ class GltfFile:
 
     def __init__(self, path):
         self.path = Path(path)
-        self.doc = gl.GLTF2.load(str(self.path))
-        self.blob = self.doc.binary_blob() if self.path.suffix.lower() == ".glb" else None
+        self.doc, self.blob = read_document(self.path)
         d = self.doc
         self.parent = {c: i for i, n in enumerate(d.nodes) for c in (n.children or [])}
         scene = d.scenes[d.scene or 0].nodes if d.scenes else [i for i in range(len(d.nodes)) if i not in self.parent]
@@ -237,6 +237,8 @@ class GltfFile:
         world = self.world_matrices(time, animation, tracks)
         morph = self.morph_weights(time, tracks)
         out = np.empty((self.vertex_count, 3))
+        stacked = np.stack(world)
+        joint_m = {}                          # per skin: (J, 4, 4) joint world x inverse bind
         for piece, (pos, deltas, joints, weights) in zip(self.pieces, self._prims):
             if deltas is not None and piece.node in morph:
                 w = morph[piece.node]
@@ -246,10 +248,9 @@ class GltfFile:
                 m = world[piece.node]
                 out[piece.start:piece.start + piece.count] = pos @ m[:3, :3].T + m[:3, 3]
                 continue
-            skin = self.doc.skins[node.skin]
-            ibm = self.inverse_binds(node.skin)
-            joint_m = np.stack([world[j] @ b for j, b in zip(skin.joints, ibm)])
-            blend = np.einsum("vk,vkij->vij", weights, joint_m[joints])
+            if node.skin not in joint_m:
+                joint_m[node.skin] = stacked[self.doc.skins[node.skin].joints] @ self.inverse_binds(node.skin)
+            blend = np.einsum("vk,vkij->vij", weights, joint_m[node.skin][joints])
             out[piece.start:piece.start + piece.count] = (np.einsum("vij,vj->vi", blend[:, :3, :3], pos)
                                                          + blend[:, :3, 3])
         return out
@@ -279,6 +280,53 @@ class GltfFile:
         for skin in self.doc.skins or []:
             out += [j for j in skin.joints if j not in out]
         return out
+
+
+class JsonObject:
+    """A glTF JSON object read by attribute, as pygltflib's classes are (`node.mesh`, `prim.attributes.POSITION`);
+    a property the file leaves out reads as None."""
+
+    __slots__ = ("_fields", "_wrapped")
+
+    def __init__(self, fields: dict):
+        self._fields, self._wrapped = fields, {}
+
+    def __getattr__(self, name):
+        if name.startswith("__"):
+            raise AttributeError(name)
+        if name not in self._wrapped:
+            self._wrapped[name] = _wrap(self._fields.get(name))
+        return self._wrapped[name]
+
+    def __getitem__(self, name):
+        return getattr(self, name)
+
+
+def _wrap(value):
+    if isinstance(value, dict):
+        return JsonObject(value)
+    if isinstance(value, list):
+        return [_wrap(v) for v in value]
+    return value
+
+
+def read_document(path: Path) -> tuple[JsonObject, bytes | None]:
+    """The JSON document of a .glb or .gltf and the GLB's binary chunk (None for .gltf). Read here rather than
+    with pygltflib, whose JSON decoding takes seconds on a file with a few thousand objects."""
+    data = path.read_bytes()
+    if data[:4] != b"glTF":
+        return JsonObject(json.loads(data)), None
+    length, = struct.unpack_from("<I", data, 8)
+    offset, doc, blob = 12, None, None
+    while offset < length:
+        size, kind = struct.unpack_from("<II", data, offset)
+        chunk = data[offset + 8:offset + 8 + size]
+        if kind == 0x4E4F534A:       # "JSON"
+            doc = json.loads(chunk)
+        elif kind == 0x004E4942:     # "BIN"
+            blob = chunk
+        offset += 8 + size
+    return JsonObject(doc), blob
 
 
 class GltfPlayer(GltfFile):
