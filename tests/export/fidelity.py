@@ -52,6 +52,7 @@ class Clip:
         self.anim = anim
         self.name = player.doc.animations[player.animation_index(anim)].name or str(anim)
         self.start, end = player.time_range(anim)
+        self.rate = rate
         self.total = int(np.floor((end - self.start) * rate + 1e-6)) + 1
         self.index = compared_frames(self.total, frames)
         self.times = self.start + self.index / rate
@@ -77,6 +78,8 @@ class Clip:
         file's player."""
         result = GltfFile(out)
         keys = np.unique(np.concatenate([t.times for t in result.channels(0)]))
+        if len(keys) > 1 and abs((keys[1] - keys[0]) * self.rate - 1.0) > 1e-3:
+            raise ValueError(f"{out}: keyed at {1 / (keys[1] - keys[0]):.3g} fps, the clip was sampled at {self.rate:g}")
         return np.stack([result.vertices(keys[min(i, len(keys) - 1)], 0) for i in self.index]), result
 
     def compare_mesh_animation(self, out) -> tuple[dict, float]:
