@@ -118,10 +118,10 @@ def avatar_row(clip: Clip, kind: str, work: Path) -> dict:
 
 def skeleton_of(clip: Clip) -> str:
     """The skeleton Kinetre reads the clip as (kinect20: the person path; otherwise the shape fit)."""
-    from kinetre.cli_common import load_motion
+    import kinetre
     from kinetre.errors import KinetreError
     try:
-        return load_motion(f"{clip.path}#{clip.anim}", None).model.name
+        return kinetre.load_take(f"{clip.path}#{clip.anim}").model.name
     except KinetreError:  # a refused clip: the animate row carries the message
         return "refused"
 
