@@ -7,7 +7,8 @@ from scipy.spatial.transform import Rotation
 
 import kinetre
 from kinetre.errors import BadMotionError
-from kinetre.motion.bvh import detect_unit, forward_kinematics, kinect_map, load_bvh, parse_bvh, up_rotation
+from kinetre.motion.bvh import detect_unit, forward_kinematics, kinect_map, load_bvh, parse_bvh
+from kinetre.rotation import up_rotation
 
 BVH_FILES = ["cmu_01_01_hops.bvh", "cmu_12_01_walk.bvh", "mixamo_rig_freebvh.bvh", "mocapbank_test.bvh",
              "pybvh_test1.bvh"]

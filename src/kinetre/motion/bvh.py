@@ -20,6 +20,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import BadMotionError
+from ..rotation import up_rotation
 from ..skeleton.humanoid_map import kinect_frames, take_map
 from ..skeleton.models import KINECT20, SkeletonModel
 from .take import Take
@@ -357,24 +358,6 @@ def kinect_map(names: tuple[str, ...], parents: tuple[int, ...],
     """
     hmap = take_map(names, parents, rest)
     return None if hmap is None else (hmap.weights(), hmap.drivers())
-
-
-def up_rotation(up: np.ndarray) -> np.ndarray:
-    """(3, 3) rotation taking the signed coordinate axis nearest `up` to +Y (identity for +Y).
-
-    >>> up_rotation(np.array([0.1, 0.0, 2.0])) @ [0, 0, 1]
-    array([0., 1., 0.])
-    """
-    axis = int(np.argmax(np.abs(up)))
-    e = np.zeros(3)
-    e[axis] = np.sign(up[axis])
-    if e[1] == 1.0:
-        return np.eye(3)
-    if e[1] == -1.0:  # upside down: half a turn about X
-        return np.diag([1.0, -1.0, -1.0])
-    k = np.cross(e, [0.0, 1.0, 0.0])  # quarter turn about e x Y (Rodrigues with sin 1, cos 0)
-    kx = np.array([[0, -k[2], k[1]], [k[2], 0, -k[0]], [-k[1], k[0], 0]])
-    return np.eye(3) + kx + kx @ kx
 
 
 def load_bvh(path: str | os.PathLike, scale: float | None = None, as_kinect: bool = True) -> Take:

@@ -31,6 +31,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..rotation import up_rotation
 from .models import KINECT20
 
 UP = np.array([0.0, 1.0, 0.0])
@@ -59,8 +60,8 @@ _EXACT = {
     "Shoulder": ["shoulder{s}", "{s}arm", "{s}upperarm", "{c}shoulder", "{s}shoulder", "upperarm{c}", "{c}uparm"],
     "Elbow": ["elbow{s}", "{s}forearm", "{s}lowerarm", "{c}elbow", "{s}elbow", "lowerarm{c}", "{c}forearm"],
     "Wrist": ["wrist{s}", "{s}hand", "{c}wrist", "{s}wrist", "hand{c}", "{c}hand"],
-    "Hand": ["hand{s}", "handtip{s}", "{s}handmiddle1", "{s}fingerbase", "{s}handindex1", "{s}handend",
-             "{s}wristend", "{c}handend"],
+    "Hand": ["hand{s}", "handtip{s}", "{s}handmiddle1", "{s}middleproximal", "middle01{c}", "{s}fingerbase",
+             "{s}handindex1", "{s}handend", "{s}wristend", "{c}handend"],
     "Hip": ["hip{s}", "{s}upleg", "{s}thigh", "{s}upperleg", "{c}thigh", "{c}hip", "{s}hip", "upperleg{c}"],
     "Knee": ["knee{s}", "{s}leg", "{s}shin", "{s}lowerleg", "{c}knee", "{s}knee", "{c}shin", "lowerleg{c}"],
     "Ankle": ["ankle{s}", "{s}foot", "{c}ankle", "{s}ankle", "foot{c}", "{c}foot"],
@@ -71,7 +72,7 @@ _WORDS = {
     "HipCenter": ("hipcenter", "spinebase", "hips", "pelvis", "hip"),
     "Spine": ("spine", "spinemid", "lowerback", "abdomen", "abdomenlower", "abdomenupper", "chest", "chestlower"),
     "ShoulderCenter": ("shouldercenter", "spineshoulder", "neck", "necklower", "neckbase"),
-    "Head": ("head",),
+    "Head": ("head", "nose"),
     "Shoulder": ("upperarm", "uparm", "arm", "shldrbend", "shldr", "shoulder"),
     "Elbow": ("forearm", "lowerarm", "forearmbend", "elbow"),
     "Wrist": ("wrist", "hand"),
@@ -103,6 +104,8 @@ class HumanoidMap:
         Kinect joint -> (source joint, weight) pairs blending its position from the source's joints.
     facing : (3,) float64
         Horizontal unit vector the skeleton faces in its rest pose.
+    notes : tuple of str
+        What the map decided against the names (sides swapped by geometry), for `describe`.
     """
 
     names: tuple[str, ...]
@@ -110,6 +113,7 @@ class HumanoidMap:
     how: dict
     derived: dict
     facing: np.ndarray
+    notes: tuple[str, ...] = ()
 
     @property
     def missing(self) -> tuple[str, ...]:
@@ -170,7 +174,7 @@ class HumanoidMap:
         lines += [f"{kj} <- {d[kj]} (derived)" for kj in KINECT20.joints if kj in self.derived]
         if self.unmapped:
             lines.append(f"not mapped (untracked): {', '.join(self.unmapped)}")
-        return lines
+        return lines + list(self.notes)
 
 
 def name_key(name: str) -> str:
@@ -234,12 +238,13 @@ def map_humanoid(names, parents, rest: np.ndarray, vrm: dict | None = None,
     if not vrm:
         for kj, j in _by_name(names, parents).items():
             put(kj, j, "name")
-    _by_topology(found, how, parents, p)
+    _by_topology(found, how, names, parents, p)
+    notes = _sides_by_feet(found, how, parents, p)
     if any(j not in found for j in REQUIRED) or "Spine" not in found or "Head" not in found:
         for kj, j in _by_geometry(p, parents).items():
             put(kj, j, "geometry")
     derived = _derive(found, parents, names)
-    return HumanoidMap(names, found, how, derived, _facing(p, found))
+    return HumanoidMap(names, found, how, derived, _facing(p, found), tuple(notes))
 
 
 def take_map(names, parents, rest: np.ndarray | None, fixed: dict | None = None) -> HumanoidMap | None:
@@ -411,7 +416,7 @@ def _by_name(names, parents) -> dict:
 
 # ---- by topology --------------------------------------------------------------------------------------
 
-def _by_topology(found, how, parents, p) -> None:
+def _by_topology(found, how, names, parents, p) -> None:
     """Pelvis = the legs' common ancestor, shoulder centre = the arms' branch point, head above it,
     hands and feet = the wrist's and ankle's children (only where no saved map decided)."""
     children = _children(parents)
@@ -446,9 +451,48 @@ def _by_topology(found, how, parents, p) -> None:
     for side in ("Left", "Right"):
         for end, inner in ((f"Hand{side}", f"Wrist{side}"), (f"Foot{side}", f"Ankle{side}")):
             if end not in found and inner in found:
-                kids = [c for c in children[found[inner]] if c not in found.values()]
-                if kids:                             # the first child, e.g. an End Site
+                kids = [c for c in children[found[inner]] if c not in found.values() and name_words(names[c])[1]]
+                if kids:                             # the first child, e.g. an End Site (a thumb is no hand)
                     found[end], how[end] = kids[0], "topology"
+
+
+def _sides_by_feet(found, how, parents, p) -> list[str]:
+    """Names that lie about sides lose to geometry: where both feet have toes (a Foot below its Ankle), the
+    toes give the facing without the sides; a limb pair whose joint called left lies clearly on the right of
+    that facing (a mirrored skeleton) is swapped. Without toes the names are kept. Returns notes."""
+    toes, feet = np.zeros(3), 0
+    for s in ("Left", "Right"):
+        a, f = found.get(f"Ankle{s}"), found.get(f"Foot{s}")
+        if a is not None and f is not None and _is_ancestor(parents, a, f):
+            toes, feet = toes + p[f] - p[a], feet + 1
+    top = found.get("ShoulderCenter", found.get("Head"))
+    if feet < 2 or "HipCenter" not in found or top is None:
+        return []
+    up = p[top] - p[found["HipCenter"]]
+    if np.linalg.norm(up) < 1e-9:
+        return []
+    up /= np.linalg.norm(up)
+    toes -= (toes @ up) * up
+    if np.linalg.norm(toes) < 1e-9:
+        return []
+    right = np.cross(toes / np.linalg.norm(toes), up)
+    notes = []
+    for limb, parts in LIMBS.items():
+        pair = next((k for k in parts if k + "Left" in found and k + "Right" in found), None)
+        if pair is None:
+            continue
+        d = p[found[pair + "Right"]] - p[found[pair + "Left"]]
+        keys = [k + s for k in parts for s in ("Left", "Right") if k + s in found]
+        if d @ right >= -0.25 * np.linalg.norm(d) or any(how[k] in ("file", "vrm") for k in keys):
+            continue
+        swapped = {(k[:-4] + "Right" if k.endswith("Left") else k[:-5] + "Left"): found[k] for k in keys}
+        for k in keys:
+            del found[k], how[k]
+        for k, j in swapped.items():
+            found[k], how[k] = j, "geometry"
+        notes.append(f"the {limb}s named left lie on the right of the facing the feet give (a mirrored "
+                     f"skeleton): sides swapped by geometry")
+    return notes
 
 
 def _derive(found, parents, names) -> dict:
@@ -482,8 +526,25 @@ def _derive(found, parents, names) -> dict:
 
 # ---- by geometry --------------------------------------------------------------------------------------
 
+# The signed axes a skeleton may stand along: +Y (glTF, BVH) first, then Z-up and the others.
+_AXES = [np.array(a, dtype=np.float64) for a in ((0, 1, 0), (0, 0, 1), (0, 0, -1), (1, 0, 0), (-1, 0, 0),
+                                                  (0, -1, 0))]
+
+
 def _by_geometry(p, parents) -> dict:
-    """The structural map of the module docstring; {} when no pelvis is found."""
+    """The structural map of the module docstring, standing the skeleton along +Y, else along the axis that
+    finds the most joints (a Z-up file); {} when no pelvis is found."""
+    best: dict = {}
+    for axis in _AXES:
+        found = _by_geometry_up(p @ up_rotation(axis).T, parents)
+        if "ShoulderCenter" in found and len(found) >= 2 + 2 * len(LIMBS["leg"]):
+            return found
+        if len(found) > len(best):
+            best = found
+    return best
+
+
+def _by_geometry_up(p, parents) -> dict:
     n = len(p)
     if n < 3:
         return {}
@@ -495,11 +556,15 @@ def _by_geometry(p, parents) -> dict:
     depth = _depths(parents)
     pelvis = legs = up = None
     for j in sorted(range(n), key=lambda j: depth[j]):
-        down = [c for c in children[j] if low[c] < p[j, 1] - 0.12 * height]
-        ups = [c for c in children[j] if high[c] > p[j, 1] + 0.12 * height and c not in down]
-        if len(down) >= 2 and ups:
-            pelvis, legs = j, sorted(down, key=lambda c: low[c])[:2]
-            up = max(ups, key=lambda c: high[c])
+        # the chain reaching highest is the spine; of the others, those reaching down are legs (arms that hang
+        # below the hips belong to the spine's chain)
+        ups = [c for c in children[j] if high[c] > p[j, 1] + 0.12 * height]
+        if not ups:
+            continue
+        top = max(ups, key=lambda c: high[c])
+        down = [c for c in children[j] if c != top and low[c] < p[j, 1] - 0.12 * height]
+        if len(down) >= 2:
+            pelvis, legs, up = j, sorted(down, key=lambda c: low[c])[:2], top
             break
     if pelvis is None:
         return {}
@@ -508,12 +573,18 @@ def _by_geometry(p, parents) -> dict:
         d = p[subtree[j]] - p[origin]
         return float(np.hypot(d[:, 0], d[:, 2]).max())
 
+    def extent(j, origin):                           # arms held out or hanging down alike
+        return float(np.linalg.norm(p[subtree[j]] - p[origin], axis=1).max())
+
     chest, arms, neck, j = None, [], None, up
     path = [up]
     while True:
-        side = [c for c in children[j] if reach(c, j) > 0.15 * height]
+        onward = max(children[j], key=lambda c: high[c]) if children[j] else None
+        side, far = [c for c in children[j] if c != onward and extent(c, j) > 0.15 * height], extent
+        if len(side) < 2:                            # the arms may branch off the highest chain too
+            side, far = [c for c in children[j] if reach(c, j) > 0.15 * height], reach
         if len(side) >= 2:
-            chest, arms = j, sorted(side, key=lambda c: -reach(c, j))[:2]
+            chest, arms = j, sorted(side, key=lambda c: -far(c, j))[:2]
             rest = [c for c in children[j] if c not in arms]
             neck = max(rest, key=lambda c: high[c]) if rest else None
             break
@@ -522,7 +593,7 @@ def _by_geometry(p, parents) -> dict:
         j = max(children[j], key=lambda c: high[c])
         path.append(j)
     leg_chains = [_follow(children, c, lambda k: -low[k]) for c in legs]
-    feet = [_limb(p, ch, LIMBS["leg"]) for ch in leg_chains]
+    feet = [_limb(p, ch, LIMBS["leg"], pelvis, height) for ch in leg_chains]
     toes = sum((p[f["Foot"]] - p[f["Ankle"]] for f in feet if "Foot" in f and "Ankle" in f), np.zeros(3))
     toes[1] = 0.0
     facing = toes / np.linalg.norm(toes) if np.linalg.norm(toes) > 1e-9 else np.array([0.0, 0.0, 1.0])
@@ -531,20 +602,23 @@ def _by_geometry(p, parents) -> dict:
     _sided(out, p, leg_chains, feet, pelvis, right)
     if chest is None:
         return out
-    if path[0] != chest:
-        out["Spine"] = path[0]
+    # the spine: the lowest joint between the pelvis and the chest that stands above the pelvis
+    spine = [k for k in path if k != chest and p[k, 1] > p[pelvis, 1] + 0.02 * height]
+    if spine:
+        out["Spine"] = spine[0]
     head_chain = _follow(children, neck, lambda c: high[c]) if neck is not None else []
     out["ShoulderCenter"] = head_chain[0] if len(head_chain) >= 2 else chest
     if head_chain:
         out["Head"] = head_chain[1] if len(head_chain) >= 2 else head_chain[0]
     arm_chains = [_follow(children, c, lambda k: reach(k, chest)) for c in arms]
-    _sided(out, p, arm_chains, [_limb(p, ch, LIMBS["arm"]) for ch in arm_chains], chest, right)
+    _sided(out, p, arm_chains, [_limb(p, ch, LIMBS["arm"], chest, height) for ch in arm_chains], chest, right)
     return out
 
 
 def _sided(out, p, chains, limbs, centre, right) -> None:
-    """Name two limbs Left/Right by which side of `centre` their first joint lies on."""
-    sides = [float((p[ch[0]] - p[centre]) @ right) for ch in chains]
+    """Name two limbs Left/Right by which side of `centre` they lie on (the mean of their joints: a clavicle
+    may start on the centre line)."""
+    sides = [float((p[ch].mean(axis=0) - p[centre]) @ right) for ch in chains]
     for side, limb in zip(("Right", "Left") if sides[0] > sides[1] else ("Left", "Right"), limbs):
         out.update({k + side: v for k, v in limb.items()})
 
@@ -557,12 +631,19 @@ def _follow(children, start, score) -> list[int]:
     return chain
 
 
-def _limb(p, chain, parts) -> dict:
-    """Upper and lower limb = the two longest consecutive bones of the chain; joints named from there."""
-    if len(chain) < 3:
+def _limb(p, chain, parts, centre, height) -> dict:
+    """Upper and lower limb = the two longest consecutive bones of the chain that start off the body's
+    centre line (a clavicle from the middle of the chest, a hip joint at the pelvis, is neither); joints
+    named from there. A chain of two joints gives the first two parts."""
+    if len(chain) < 2:
         return {}
+    if len(chain) == 2:
+        return dict(zip(parts, chain))
     bones = np.linalg.norm(np.diff(p[chain], axis=0), axis=1)
-    i = int(np.argmax(bones[:-1] + bones[1:]))
+    off = np.hypot(*(p[chain] - p[centre])[:, [0, 2]].T) > 0.03 * height
+    pair = bones[:-1] + bones[1:]
+    pair = np.where(off[:-2], pair, pair - pair.max() - 1.0)      # a pair from the centre line only if all are
+    i = int(np.argmax(pair))
     return {part: chain[i + k] for k, part in enumerate(parts) if i + k < len(chain)}
 
 
