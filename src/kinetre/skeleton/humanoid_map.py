@@ -195,13 +195,26 @@ def name_words(name: str) -> tuple[str, str, tuple[int, ...]]:
     >>> name_words("lShldrBend"), name_words("thigh.R"), name_words("J_Bip_L_UpperArm")
     (('Left', 'shldrbend', ()), ('Right', 'thigh', ()), ('Left', 'upperarm', ()))
     """
-    toks = [t.lower() for t in re.findall(r"[A-Z]+(?![a-z])|[A-Z]?[a-z]+|\d+", name.rsplit(":", 1)[-1])]
+    toks = _tokens(name)
     sides = {_SIDES[t] for t in toks if t in _SIDES}
     side = sides.pop() if len(sides) == 1 else ""
     digits = tuple(int(t) for t in toks if t.isdigit())
     if _HELPERS & set(toks):
         return side, "", digits
     return side, "".join(t for t in toks if not t.isdigit() and t not in _NOISE and t not in _SIDES), digits
+
+
+def _tokens(name: str) -> list[str]:
+    return [t.lower() for t in re.findall(r"[A-Z]+(?![a-z])|[A-Z]?[a-z]+|\d+", name.rsplit(":", 1)[-1])]
+
+
+def is_helper(name: str) -> bool:
+    """A twist, IK, pole, finger... joint by its name: it never plays a Kinect joint.
+
+    >>> is_helper("LeftHandThumb1"), is_helper("joint3")
+    (True, False)
+    """
+    return bool(_HELPERS & set(_tokens(name)))
 
 
 def map_humanoid(names, parents, rest: np.ndarray, vrm: dict | None = None,
@@ -227,6 +240,8 @@ def map_humanoid(names, parents, rest: np.ndarray, vrm: dict | None = None,
     how: dict[str, str] = {}
 
     def put(kj, j, kind):
+        if kind == "geometry" and (is_helper(names[j]) or not _in_chain(found, kj, j, parents)):
+            return
         if kj not in found and j not in found.values():
             found[kj], how[kj] = int(j), kind
 
@@ -451,9 +466,25 @@ def _by_topology(found, how, names, parents, p) -> None:
     for side in ("Left", "Right"):
         for end, inner in ((f"Hand{side}", f"Wrist{side}"), (f"Foot{side}", f"Ankle{side}")):
             if end not in found and inner in found:
-                kids = [c for c in children[found[inner]] if c not in found.values() and name_words(names[c])[1]]
+                kids = [c for c in children[found[inner]] if c not in found.values() and not is_helper(names[c])]
                 if kids:                             # the first child, e.g. an End Site (a thumb is no hand)
                     found[end], how[end] = kids[0], "topology"
+
+
+def _chain_of(kj: str) -> tuple[str, ...]:
+    part, side = _kinect_part(kj)
+    if not side:
+        return TORSO
+    return tuple(k + side for k in next(parts for parts in LIMBS.values() if part in parts))
+
+
+def _in_chain(found, kj, j, parents) -> bool:
+    """Geometry fills a gap only in order: below the joints the chain has before it, above those after it
+    (so a skeleton without elbows gets no elbow from its hand or fingers)."""
+    chain = _chain_of(kj)
+    i = chain.index(kj)
+    return all(_is_ancestor(parents, found[k], j) and found[k] != j for k in chain[:i] if k in found) and \
+        all(_is_ancestor(parents, j, found[k]) and found[k] != j for k in chain[i + 1:] if k in found)
 
 
 def _sides_by_feet(found, how, parents, p) -> list[str]:
@@ -517,10 +548,14 @@ def _derive(found, parents, names) -> dict:
     if "Spine" not in found and source("HipCenter") and source("ShoulderCenter"):
         out["Spine"] = blend((0.75, source("HipCenter")), (0.25, source("ShoulderCenter")))
     for side in ("Left", "Right"):
-        for end, mid, base in ((f"Hand{side}", f"Wrist{side}", f"Elbow{side}"),
-                               (f"Foot{side}", f"Ankle{side}", f"Knee{side}")):
-            if end not in found and mid in found and base in found:
+        for end, mid, base, root in ((f"Hand{side}", f"Wrist{side}", f"Elbow{side}", f"Shoulder{side}"),
+                                     (f"Foot{side}", f"Ankle{side}", f"Knee{side}", f"Hip{side}")):
+            if end in found or mid not in found:
+                continue
+            if base in found:
                 out[end] = blend((1.25, source(mid)), (-0.25, source(base)))
+            elif root in found:                      # no elbow (knee): a quarter of half the limb
+                out[end] = blend((1.125, source(mid)), (-0.125, source(root)))
     return out
 
 
@@ -606,12 +641,20 @@ def _by_geometry_up(p, parents) -> dict:
     spine = [k for k in path if k != chest and p[k, 1] > p[pelvis, 1] + 0.02 * height]
     if spine:
         out["Spine"] = spine[0]
+    arm_chains = [_follow(children, c, lambda k: far(k, chest)) for c in arms]
+    arm_limbs = [_limb(p, ch, LIMBS["arm"], chest, height) for ch in arm_chains]
+    _sided(out, p, arm_chains, arm_limbs, chest, right)
+    # up the chain above the chest: a first joint at most a little above the shoulders is the neck's base
+    # (the shoulder centre), else the chest is; the head is the joint nearest the middle between the
+    # shoulders and the chain's top (the skull's base and its top end lie either side)
     head_chain = _follow(children, neck, lambda c: high[c]) if neck is not None else []
-    out["ShoulderCenter"] = head_chain[0] if len(head_chain) >= 2 else chest
+    shoulders = float(np.mean([p[limb["Shoulder"], 1] for limb in arm_limbs if "Shoulder" in limb] or [p[chest, 1]]))
+    out["ShoulderCenter"] = chest
+    if len(head_chain) >= 2 and p[head_chain[0], 1] < shoulders + 0.08 * height:
+        out["ShoulderCenter"] = head_chain.pop(0)
     if head_chain:
-        out["Head"] = head_chain[1] if len(head_chain) >= 2 else head_chain[0]
-    arm_chains = [_follow(children, c, lambda k: reach(k, chest)) for c in arms]
-    _sided(out, p, arm_chains, [_limb(p, ch, LIMBS["arm"], chest, height) for ch in arm_chains], chest, right)
+        middle = 0.5 * (shoulders + p[head_chain, 1].max())
+        out["Head"] = min(head_chain, key=lambda k: abs(p[k, 1] - middle))
     return out
 
 
