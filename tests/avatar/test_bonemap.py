@@ -54,15 +54,19 @@ def test_a_fox_is_refused_and_pointed_to_possession(data_dir):
         map_bones(fox)
 
 
-def test_a_map_that_cannot_be_completed_names_the_missing_joints(rigged):
+def test_an_armless_avatar_is_driven_by_what_maps_and_a_flat_one_is_refused(rigged):
     avatar, bonemap, _ = rigged["CesiumMan"]
     parents = avatar.joint_parents.copy()
     for side in ("Left", "Right"):
         parents[bonemap.joints["Shoulder" + side]] = -1           # the arms torn off
-    armless = dataclasses.replace(avatar, joint_parents=parents, source="/nonexistent/armless.glb")
-    with pytest.raises(BadAvatarError, match=r"no joint found for ShoulderCenter, ShoulderLeft, ElbowLeft, WristLeft, "
-                       r"ShoulderRight, ElbowRight, WristRight \(mapped: HipCenter"):
-        map_bones(armless)
+    armless = map_bones(dataclasses.replace(avatar, joint_parents=parents, source="/nonexistent/armless.glb"))
+    assert armless.missing == ("ShoulderLeft", "ElbowLeft", "WristLeft", "ShoulderRight", "ElbowRight", "WristRight")
+    for kj in ("HipCenter", "Spine", "Head", "HipLeft", "KneeLeft", "AnkleLeft", "HipRight", "AnkleRight"):
+        assert armless.joints[kj] == bonemap.joints[kj], kj
+    flat = dataclasses.replace(avatar, joint_parents=np.full_like(parents, -1), source="/nonexistent/flat.glb")
+    with pytest.raises(BadAvatarError, match=r"flat.glb: cannot map the skeleton to a body: no joint found for "
+                       r"HipCenter, ShoulderCenter, .* \(mapped: nothing\)"):
+        map_bones(flat)
 
 
 def test_a_saved_map_next_to_the_avatar_is_loaded_and_wins(tmp_path, data_dir, rigged):

@@ -1,6 +1,6 @@
 """The studio's avatar routes (studio/avatars.py) over HTTP: a humanoid gets a plan, a fox is refused with a
-pointer to possession, an incomplete map is reported (422) and completed by a saved map, and a take of
-page frames comes back as files."""
+pointer to possession, a partial map drives what maps, too little is reported (422) and completed by a saved
+map, and a take of page frames comes back as files."""
 from __future__ import annotations
 
 import pygltflib
@@ -37,31 +37,48 @@ def test_a_humanoid_gets_a_plan_and_a_fox_is_refused(client, data_dir):
     assert r.status_code == 400 and "rigged .glb, .gltf or .vrm" in r.json()["error"]
 
 
-def test_an_incomplete_map_is_reported_then_completed_by_the_editor(client, data_dir, tmp_path):
-    # CesiumMan with its arms hung on the scene root: the geometry no longer finds a chest with two arms
+def rehung(data_dir, tmp_path, name, moved):
+    """CesiumMan with the skin joints `moved` (indices) hung on the scene root."""
     doc = pygltflib.GLTF2.load(str(data_dir / "avatars" / "CesiumMan.glb"))
-    names = load_avatar(data_dir / "avatars" / "CesiumMan.glb")
-    skin = doc.skins[0]
-    shoulders = [skin.joints[5], skin.joints[6]]                      # joint5/joint6: the upper arms
+    nodes = [doc.skins[0].joints[k] for k in moved]
     for node in doc.nodes:
         if node.children:
-            node.children = [c for c in node.children if c not in shoulders]
-    doc.nodes[0].children = list(doc.nodes[0].children) + shoulders
-    broken = tmp_path / "armless.glb"
-    doc.save_binary(str(broken))
-    r = upload(client, broken)
+            node.children = [c for c in node.children if c not in nodes]
+    doc.nodes[0].children = list(doc.nodes[0].children) + nodes
+    path = tmp_path / name
+    doc.save_binary(str(path))
+    return path
+
+
+def test_a_partial_map_drives_what_maps(client, data_dir, tmp_path):
+    # CesiumMan with its arms hung on the scene root: the geometry no longer finds a chest with two arms,
+    # the hips, torso and legs still drive it
+    r = upload(client, rehung(data_dir, tmp_path, "armless.glb", [5, 6]))
+    assert r.status_code == 200, r.json()
+    body = r.json()
+    assert {"ShoulderLeft", "ElbowLeft", "WristLeft"} <= set(body["missing"]) and body["plan"] is not None
+    assert {"HipCenter", "HipLeft", "KneeLeft", "AnkleRight"} <= set(body["map"])
+
+
+def test_too_little_is_reported_then_completed_by_the_editor(client, data_dir, tmp_path):
+    names = load_avatar(data_dir / "avatars" / "CesiumMan.glb")
+    # every joint hung on the scene root, no names: nothing to go by
+    r = upload(client, rehung(data_dir, tmp_path, "flat.glb", range(1, len(names.joints))))
     assert r.status_code == 422
     body = r.json()
-    assert {"ShoulderLeft", "ElbowLeft", "WristLeft"} <= set(body["missing"]) and body["plan"] is None
-    table = {"ShoulderCenter": "joint3", "ShoulderLeft": "joint5", "ElbowLeft": "joint7", "WristLeft": "joint9",
-             "ShoulderRight": "joint6", "ElbowRight": "joint8", "WristRight": "joint10"}
+    assert "too little of the skeleton maps" in body["error"] and body["plan"] is None
+    assert {"HipCenter", "ShoulderLeft", "ElbowLeft", "WristLeft"} <= set(body["missing"])
+    table = {"HipCenter": "joint0", "ShoulderCenter": "joint3", "ShoulderLeft": "joint5", "ElbowLeft": "joint7",
+             "WristLeft": "joint9", "ShoulderRight": "joint6", "ElbowRight": "joint8", "WristRight": "joint10",
+             "HipLeft": "joint11", "KneeLeft": "joint13", "AnkleLeft": "joint15", "HipRight": "joint12",
+             "KneeRight": "joint14", "AnkleRight": "joint16"}
     assert len(names.joints) == len(body["joints"])
     r = client.post(f"/api/avatars/{body['id']}/map", json={"kinect20": table})
     assert r.status_code == 200, r.json()
     done = r.json()
     assert done["missing"] == [] and done["how"]["ShoulderLeft"] == "file" and done["plan"] is not None
     saved = client.get(f"/api/avatars/{body['id']}/map").json()
-    assert saved["avatar"] == "armless.glb" and saved["kinect20"]["ElbowLeft"] == "joint7"
+    assert saved["avatar"] == "flat.glb" and saved["kinect20"]["ElbowLeft"] == "joint7"
     r = client.post(f"/api/avatars/{body['id']}/map", json={"kinect20": {"Elbow": "joint7"}})
     assert r.status_code == 400 and "'Elbow' is not a Kinect-20 joint" in r.json()["error"]
 

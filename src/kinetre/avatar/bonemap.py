@@ -17,7 +17,7 @@ from ..skeleton.humanoid_map import REQUIRED, UP, HumanoidMap, map_humanoid, par
 from ..skeleton.models import KINECT20, OPENNI17
 from .load import Avatar
 
-__all__ = ["REQUIRED", "UP", "BoneMap", "map_path", "map_bones", "auto_map", "check_humanoid", "describe",
+__all__ = ["REQUIRED", "UP", "BoneMap", "map_path", "map_bones", "auto_map", "can_drive", "check_humanoid", "describe",
            "write_map", "read_map", "parse_map", "kinect_from_openni"]
 
 # An avatar's map: Kinect joint -> skin joint index (`joints`), how each was found, the facing.
@@ -48,7 +48,7 @@ def map_bones(avatar: Avatar, saved: str | None = None) -> BoneMap:
     """
     bonemap = auto_map(avatar, saved)
     name = os.path.basename(avatar.source)
-    if not bonemap.drivable or not _torso_and_limb(bonemap):
+    if not can_drive(bonemap):
         raise BadAvatarError(
             f"{avatar.source}: cannot map the skeleton to a body: no joint found for "
             f"{', '.join(bonemap.missing)} (mapped: {_describe(avatar, bonemap)}); if it is a humanoid, name the "
@@ -58,10 +58,11 @@ def map_bones(avatar: Avatar, saved: str | None = None) -> BoneMap:
     return bonemap
 
 
-def _torso_and_limb(bonemap: BoneMap) -> bool:
-    """The retargeting needs the hips, a joint up the torso and one limb chain to turn the body by."""
+def can_drive(bonemap: BoneMap) -> bool:
+    """Enough maps to drive the avatar: the hips, a joint up the torso and one limb chain to turn the body by
+    (the joints that do not map follow their parents)."""
     m = bonemap.joints
-    return "HipCenter" in m and ("ShoulderCenter" in m or "Head" in m) and bool(bonemap.limbs)
+    return bonemap.drivable and "HipCenter" in m and ("ShoulderCenter" in m or "Head" in m) and bool(bonemap.limbs)
 
 
 def auto_map(avatar: Avatar, saved: str | None = None) -> BoneMap:

@@ -635,7 +635,14 @@ def _by_geometry_up(p, parents) -> dict:
     right = np.cross(facing, UP)
     out = {"HipCenter": pelvis}
     _sided(out, p, leg_chains, feet, pelvis, right)
-    if chest is None:
+    if chest is None:                                # no arms: the spine's chain alone, the head on top
+        line = [k for k in path if p[k, 1] > p[pelvis, 1] + 0.02 * height]
+        if line:
+            out["Head"] = line[-1]
+        if len(line) >= 2:
+            out["Spine"] = line[0]
+        if len(line) >= 3:
+            out["ShoulderCenter"] = line[-2]
         return out
     # the spine: the lowest joint between the pelvis and the chest that stands above the pelvis
     spine = [k for k in path if k != chest and p[k, 1] > p[pelvis, 1] + 0.02 * height]

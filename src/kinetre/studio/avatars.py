@@ -1,9 +1,11 @@
 """Avatars in the studio: uploaded rigged humanoids, their bone maps and plans, and their recorded takes.
 
-    POST /api/avatar?name=F                  upload a .glb/.gltf/.vrm: 200 {avatar payload}; 422 {error, missing,
-                                             avatar payload with the partial map} when the map is incomplete (the
-                                             page's map editor completes it); 400 {error} when it is no humanoid
-                                             (the page then offers it for possession)
+    POST /api/avatar?name=F                  upload a .glb/.gltf/.vrm: 200 {avatar payload} when enough maps to
+                                             drive it (hips, torso, a limb; "missing" lists the joints that then
+                                             follow their parents); 422 {error, missing, avatar payload with the
+                                             partial map} when too little maps (the page's map editor completes
+                                             it); 400 {error} when it is no humanoid (the page then offers it for
+                                             possession)
     GET  /api/avatars/{id}/file              the avatar file (the page loads it with three.js)
     POST /api/avatars/{id}/map               {"kinect20": {Kinect joint: avatar joint name}}: saved as JSON next to
                                              the avatar (used from then on), the plan recomputed
@@ -30,7 +32,7 @@ from starlette.requests import Request
 from starlette.responses import FileResponse, JSONResponse, Response
 from starlette.routing import Route
 
-from ..avatar.bonemap import auto_map, check_humanoid, map_path, parse_map, write_map
+from ..avatar.bonemap import auto_map, can_drive, check_humanoid, map_path, parse_map, write_map
 from ..avatar.load import EXTENSIONS, load_avatar
 from ..avatar.retarget import plan_retarget, retarget
 from ..errors import BadAvatarError, KinetreError
@@ -71,9 +73,9 @@ class Shelf:
         bonemap = auto_map(avatar)
         entry["bonemap"], entry["plan"] = bonemap, None
         body = self.payload(avatar_id)
-        if bonemap.missing:
-            return 422, {**body, "error": f"{entry['name']}: no joint found for {', '.join(bonemap.missing)}: "
-                                          "pick them in the avatar map"}
+        if not can_drive(bonemap):
+            return 422, {**body, "error": f"{entry['name']}: too little of the skeleton maps to drive it (no joint "
+                                          f"found for {', '.join(bonemap.missing)}): pick them in the avatar map"}
         try:
             check_humanoid(avatar, bonemap)
         except BadAvatarError as exc:

@@ -80,7 +80,9 @@ export class AvatarStage {
       this.say(body.error ?? 'complete the avatar map', true);
       this.openEditor();
     } else {
-      this.say(`avatar ${body.name} ready: it follows the camera skeleton or the sample motion`);
+      // a partial map drives what maps; the joints it lacks follow their parents
+      const loose = body.missing.length ? `; not mapped (they follow their parents): ${body.missing.join(', ')}` : '';
+      this.say(`avatar ${body.name} ready: it follows the camera skeleton or the sample motion${loose}`);
     }
     return true;
   }
