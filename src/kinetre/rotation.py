@@ -23,3 +23,93 @@ def up_rotation(up: np.ndarray) -> np.ndarray:
     k = np.cross(e, [0.0, 1.0, 0.0])  # quarter turn about e x Y (Rodrigues with sin 1, cos 0)
     kx = np.array([[0, -k[2], k[1]], [k[2], 0, -k[0]], [-k[1], k[0], 0]])
     return np.eye(3) + kx + kx @ kx
+
+
+def axis_rotations(axis: int, degrees: np.ndarray) -> np.ndarray:
+    """(..., 3, 3) rotations by `degrees` (...) about coordinate axis 0, 1 or 2 (right-handed).
+
+    >>> np.round(axis_rotations(2, np.array([90.0]))[0] @ [1, 0, 0], 12)
+    array([0., 1., 0.])
+    """
+    a = np.radians(np.asarray(degrees, dtype=np.float64))
+    c, s = np.cos(a), np.sin(a)
+    r = np.zeros(a.shape + (3, 3))
+    i, j = [(1, 2), (2, 0), (0, 1)][axis]
+    r[..., axis, axis] = 1.0
+    r[..., i, i] = c
+    r[..., j, j] = c
+    r[..., i, j] = -s
+    r[..., j, i] = s
+    return r
+
+
+def quaternion_matrices(q: np.ndarray) -> np.ndarray:
+    """(..., 3, 3) rotation matrices of (..., 4) quaternions (x, y, z, w), normalised first.
+
+    >>> np.round(quaternion_matrices(np.array([0.0, 0.0, 1.0, 1.0])) @ [1, 0, 0], 12)
+    array([0., 1., 0.])
+    """
+    q = np.asarray(q, dtype=np.float64)
+    q = q / np.maximum(np.linalg.norm(q, axis=-1, keepdims=True), 1e-300)
+    x, y, z, w = np.moveaxis(q, -1, 0)
+    return np.stack([
+        np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)], axis=-1),
+        np.stack([2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)], axis=-1),
+        np.stack([2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)], axis=-1),
+    ], axis=-2)
+
+
+def matrix_quaternions(rotations: np.ndarray) -> np.ndarray:
+    """(..., 4) unit quaternions (x, y, z, w) of (..., 3, 3) rotation matrices (scipy's, w >= 0).
+
+    >>> matrix_quaternions(np.eye(3))
+    array([0., 0., 0., 1.])
+    """
+    from scipy.spatial.transform import Rotation
+
+    r = np.asarray(rotations, dtype=np.float64)
+    return Rotation.from_matrix(r.reshape(-1, 3, 3)).as_quat().reshape(r.shape[:-2] + (4,))
+
+
+def slerp(a: np.ndarray, b: np.ndarray, u: np.ndarray) -> np.ndarray:
+    """(N, 4) unit quaternions on the shortest arc from a (N, 4) to b (N, 4) at fractions u (N,)."""
+    dot = np.einsum("ni,ni->n", a, b)
+    b = np.where(dot[:, None] < 0, -b, b)
+    dot = np.abs(dot)
+    th = np.arccos(np.clip(dot, -1.0, 1.0))
+    s = np.sin(th)
+    near = s < 1e-6  # nearly equal: the linear blend is exact to rounding
+    wa = np.where(near, 1 - u, np.sin((1 - u) * th) / np.where(near, 1.0, s))
+    wb = np.where(near, u, np.sin(u * th) / np.where(near, 1.0, s))
+    q = wa[:, None] * a + wb[:, None] * b
+    return q / np.linalg.norm(q, axis=1, keepdims=True)
+
+
+def minimal_rotations(u: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """(..., 3, 3) smallest rotations turning directions u (..., 3) onto v (..., 3) (Rodrigues); half a turn
+    about an axis perpendicular to u where they are opposite.
+
+    >>> np.round(minimal_rotations(np.array([1.0, 0, 0]), np.array([0, 2.0, 0])) @ [1, 0, 0], 12)
+    array([0., 1., 0.])
+    """
+    u, v = np.broadcast_arrays(np.asarray(u, dtype=np.float64), np.asarray(v, dtype=np.float64))
+    shape = u.shape[:-1]
+    u, v = u.reshape(-1, 3), v.reshape(-1, 3)
+    u = u / np.maximum(np.linalg.norm(u, axis=1, keepdims=True), 1e-12)
+    v = v / np.maximum(np.linalg.norm(v, axis=1, keepdims=True), 1e-12)
+    axis = np.cross(u, v)
+    s2 = np.einsum("fi,fi->f", axis, axis)
+    c = np.einsum("fi,fi->f", u, v)
+    k = np.zeros((len(u), 3, 3))
+    k[:, 0, 1], k[:, 0, 2], k[:, 1, 2] = -axis[:, 2], axis[:, 1], -axis[:, 0]
+    k[:, 1, 0], k[:, 2, 0], k[:, 2, 1] = axis[:, 2], -axis[:, 1], axis[:, 0]
+    scale = np.where(s2 > 1e-24, (1.0 - c) / np.maximum(s2, 1e-24), 0.5)
+    rot = np.eye(3) + k + scale[:, None, None] * (k @ k)
+    flip = (s2 <= 1e-24) & (c < 0)
+    if flip.any():
+        perp = np.cross(u[flip], [1.0, 0.0, 0.0])
+        weak = np.linalg.norm(perp, axis=1) < 1e-6
+        perp[weak] = np.cross(u[flip][weak], [0.0, 1.0, 0.0])
+        perp /= np.linalg.norm(perp, axis=1, keepdims=True)
+        rot[flip] = 2 * np.einsum("fi,fj->fij", perp, perp) - np.eye(3)
+    return rot.reshape(shape + (3, 3))

@@ -9,7 +9,8 @@ import pygltflib as gl
 import pytest
 
 from kinetre.errors import BadMotionError
-from kinetre.motion.gltf import animations, load_gltf, sample, slerp
+from kinetre.motion.gltf import animations, load_gltf, sample
+from kinetre.rotation import slerp
 from kinetre.motion.source import load_take
 
 

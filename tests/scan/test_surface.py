@@ -8,7 +8,7 @@ import trimesh
 import kinetre
 from kinetre.errors import ExportError
 from kinetre.scan.surface import (ScanMesh, component_count, decimate, orient_outward, remove_small_components,
-                                  rotation_between, write_mesh)
+                                  write_mesh)
 
 
 def _box(size=1.0, offset=(0.0, 0.0, 0.0), subdivisions=0) -> ScanMesh:
@@ -53,18 +53,6 @@ def test_orient_outward_flips_an_inside_out_mesh():
     fixed = orient_outward(inside_out, cameras)
     assert trimesh.Trimesh(fixed.vertices, fixed.faces).volume == pytest.approx(1.0)
     assert orient_outward(box, cameras) is box
-
-
-def test_rotation_between():
-    rng = np.random.default_rng(0)
-    for _ in range(5):
-        a, b = rng.normal(size=3), rng.normal(size=3)
-        r = rotation_between(a, b)
-        np.testing.assert_allclose(r @ (a / np.linalg.norm(a)), b / np.linalg.norm(b), atol=1e-12)
-        np.testing.assert_allclose(r @ r.T, np.eye(3), atol=1e-12)
-        assert np.linalg.det(r) == pytest.approx(1.0)
-    flip = rotation_between(np.array([0.0, 1.0, 0.0]), np.array([0.0, -1.0, 0.0]))
-    np.testing.assert_allclose(flip @ [0, 1, 0], [0, -1, 0], atol=1e-12)
 
 
 @pytest.mark.parametrize("suffix", [".ply", ".obj", ".glb"])

@@ -22,9 +22,9 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..errors import BadAvatarError
+from ..gltf_read import GltfDocument, read_gltf
+from ..rotation import quaternion_matrices
 
-_DTYPES = {5120: np.int8, 5121: np.uint8, 5122: np.int16, 5123: np.uint16, 5125: np.uint32, 5126: np.float32}
-_WIDTH = {"SCALAR": 1, "VEC2": 2, "VEC3": 3, "VEC4": 4, "MAT2": 4, "MAT3": 9, "MAT4": 16}
 EXTENSIONS = (".glb", ".gltf", ".vrm")
 
 
@@ -117,10 +117,7 @@ class Avatar:
 
 def trs_matrix(translation, rotation, scale) -> np.ndarray:
     """(4, 4) T · R · S from glTF's translation (3), rotation quaternion (x, y, z, w) and scale (3)."""
-    x, y, z, w = np.asarray(rotation, dtype=np.float64) / max(np.linalg.norm(rotation), 1e-300)
-    r = np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
-                  [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
-                  [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)]])
+    r = quaternion_matrices(np.asarray(rotation, dtype=np.float64))
     m = np.eye(4)
     m[:3, :3] = r * np.asarray(scale, dtype=np.float64)[None, :]
     m[:3, 3] = translation
@@ -136,32 +133,17 @@ def load_avatar(path: str | os.PathLike) -> Avatar:
         Missing/unreadable/corrupt file, no skin, no skinned triangles, bad accessors. The message names
         the file; a mesh without a skin is pointed to `kinetre animate` (possession needs no rig).
     """
-    import pygltflib as gl
-
     path = os.fspath(path)
-    low = path.lower()
-    if not low.endswith(EXTENSIONS):
+    if not path.lower().endswith(EXTENSIONS):
         raise BadAvatarError(f"{path}: an avatar must be a rigged .glb, .gltf or .vrm file")
-    try:
-        with open(path, "rb") as f:
-            head = f.read(4)
-    except FileNotFoundError:
-        raise BadAvatarError(f"{path}: no such file") from None
-    except OSError as e:
-        raise BadAvatarError(f"{path}: cannot read ({e.strerror or e})") from None
-    try:
-        if head == b"glTF":
-            doc = gl.GLTF2.load_binary(path)
-        else:
-            doc = gl.GLTF2.load_json(path)
-            doc.convert_buffers(gl.BufferFormat.BINARYBLOB)
-        blob = doc.binary_blob() or b""
-    except Exception as e:  # pygltflib raises many kinds on corrupt input
-        raise BadAvatarError(f"{path}: not a readable glTF file ({type(e).__name__}: {e})") from None
-    return _build(path, doc, blob)
+    # every buffer in one blob: the avatar is written out again with its own (export.py)
+    reader = read_gltf(path, BadAvatarError, embed=True)
+    return _build(reader)
 
 
-def _build(path: str, doc, blob: bytes) -> Avatar:
+def _build(reader: GltfDocument) -> Avatar:
+    path, doc = reader.path, reader.doc
+    blob = doc.binary_blob() or b""
     nodes = doc.nodes or []
     if not nodes:
         raise BadAvatarError(f"{path}: the file has no nodes")
@@ -181,11 +163,10 @@ def _build(path: str, doc, blob: bytes) -> Avatar:
     joints = np.array(skin.joints, dtype=np.int64)
     if joints.size == 0 or (joints < 0).any() or (joints >= len(nodes)).any():
         raise BadAvatarError(f"{path}: skin {skin_index} has no or bad joints")
-    reader = _Accessors(path, doc, blob)
     if skin.inverseBindMatrices is None:
         ibm = np.tile(np.eye(4), (len(joints), 1, 1))
     else:
-        ibm = reader.read(skin.inverseBindMatrices).reshape(-1, 4, 4).transpose(0, 2, 1)
+        ibm = reader.accessor(skin.inverseBindMatrices).reshape(-1, 4, 4).transpose(0, 2, 1)
         if len(ibm) != len(joints):
             raise BadAvatarError(f"{path}: skin {skin_index} has {len(joints)} joints but {len(ibm)} inverse "
                                  "bind matrices")
@@ -254,53 +235,14 @@ def _world(local: np.ndarray, parents: np.ndarray, order: list[int]) -> np.ndarr
     return world
 
 
-class _Accessors:
-    """Decode accessors (byteStride, normalized integers, sparse substitution)."""
-
-    def __init__(self, path, doc, blob):
-        self.path, self.doc, self.blob = path, doc, blob
-
-    def _view(self, view_index, dtype, width, count, offset):
-        bv = self.doc.bufferViews[view_index]
-        item = dtype.itemsize * width
-        stride = bv.byteStride or item
-        start = (bv.byteOffset or 0) + offset
-        end = start + stride * (count - 1) + item
-        if count and end > len(self.blob):
-            raise BadAvatarError(f"{self.path}: an accessor reads past the end of the buffer")
-        raw = np.frombuffer(self.blob, dtype=np.uint8, count=max(end - start, 0), offset=start)
-        rows = np.lib.stride_tricks.as_strided(raw, shape=(count, item), strides=(stride, 1))
-        return np.frombuffer(rows.copy().tobytes(), dtype=dtype).reshape(count, width)
-
-    def read(self, index: int) -> np.ndarray:
-        try:
-            a = self.doc.accessors[index]
-            dtype = np.dtype(_DTYPES[a.componentType]).newbyteorder("<")
-            width = _WIDTH[a.type]
-            out = (self._view(a.bufferView, dtype, width, a.count, a.byteOffset or 0) if a.bufferView is not None
-                   else np.zeros((a.count, width), dtype))
-            if a.sparse is not None and a.sparse.count:
-                s = a.sparse
-                idx_dtype = np.dtype(_DTYPES[s.indices.componentType])
-                idx = self._view(s.indices.bufferView, idx_dtype, 1, s.count, s.indices.byteOffset or 0)[:, 0]
-                out = out.copy()
-                out[idx.astype(np.int64)] = self._view(s.values.bufferView, dtype, width, s.count,
-                                                       s.values.byteOffset or 0)
-        except (IndexError, KeyError, TypeError, ValueError) as e:
-            raise BadAvatarError(f"{self.path}: accessor {index} cannot be read ({e})") from None
-        if a.normalized and np.issubdtype(dtype, np.integer):
-            return np.maximum(out.astype(np.float64) / np.iinfo(dtype).max, -1.0)
-        return out.astype(np.float64) if dtype.kind == "f" else out.astype(np.int64)
-
-
 def _primitive(path, doc, reader, node, mesh, index, prim, joint_count) -> Primitive | None:
     attrs = prim.attributes
     if prim.mode not in (None, 4) or attrs.POSITION is None or attrs.JOINTS_0 is None or attrs.WEIGHTS_0 is None:
         return None                                  # points, lines, strips, unskinned parts: not drawn by us
-    pos = reader.read(attrs.POSITION)
+    pos = reader.accessor(attrs.POSITION)
     v = len(pos)
-    joints = reader.read(attrs.JOINTS_0)
-    weights = reader.read(attrs.WEIGHTS_0).astype(np.float64)
+    joints = reader.accessor(attrs.JOINTS_0)
+    weights = reader.accessor(attrs.WEIGHTS_0).astype(np.float64)
     if joints.shape != (v, 4) or weights.shape != (v, 4):
         raise BadAvatarError(f"{path}: mesh {mesh} primitive {index}: JOINTS_0/WEIGHTS_0 must be VEC4 per vertex")
     if (joints < 0).any() or (joints >= joint_count).any():
@@ -308,18 +250,18 @@ def _primitive(path, doc, reader, node, mesh, index, prim, joint_count) -> Primi
                              f"({joint_count} joints)")
     total = weights.sum(axis=1, keepdims=True)
     weights = np.where(total > 0, weights / np.where(total > 0, total, 1.0), np.eye(4)[0])
-    faces = (reader.read(prim.indices)[:, 0] if prim.indices is not None else np.arange(v)).reshape(-1, 3)
+    faces = (reader.accessor(prim.indices)[:, 0] if prim.indices is not None else np.arange(v)).reshape(-1, 3)
     if faces.size and (faces.max() >= v):
         raise BadAvatarError(f"{path}: mesh {mesh} primitive {index}: an index points past its {v} vertices")
-    normals = reader.read(attrs.NORMAL) if attrs.NORMAL is not None else _normals(pos, faces)
-    uvs = reader.read(attrs.TEXCOORD_0) if attrs.TEXCOORD_0 is not None else None
+    normals = reader.accessor(attrs.NORMAL) if attrs.NORMAL is not None else _normals(pos, faces)
+    uvs = reader.accessor(attrs.TEXCOORD_0) if attrs.TEXCOORD_0 is not None else None
     color, image = np.array([0.8, 0.8, 0.8, 1.0]), None
     if prim.material is not None and doc.materials:
         pbr = doc.materials[prim.material].pbrMetallicRoughness
         if pbr is not None:
             color = np.array(pbr.baseColorFactor or [1, 1, 1, 1], dtype=np.float64)
             if pbr.baseColorTexture is not None and uvs is not None:
-                image = _image(doc, reader.blob, pbr.baseColorTexture.index)
+                image = _image(reader, pbr.baseColorTexture.index)
     return Primitive(node, mesh, index, pos, normals, joints, weights, faces.astype(np.int64), uvs, color, image)
 
 
@@ -332,14 +274,14 @@ def _normals(pos, faces):
     return n / np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-300)
 
 
-def _image(doc, blob, texture_index):
+def _image(reader: GltfDocument, texture_index):
     """The decoded base-colour image (PIL), or None if it cannot be read (the colour factor remains)."""
     from PIL import Image
+    doc = reader.doc
     try:
         src = doc.images[doc.textures[texture_index].source]
         if src.bufferView is not None:
-            bv = doc.bufferViews[src.bufferView]
-            data = blob[(bv.byteOffset or 0):(bv.byteOffset or 0) + bv.byteLength]
+            data = reader.view(src.bufferView)
         elif src.uri and src.uri.startswith("data:"):
             import base64
             data = base64.b64decode(src.uri.split(",", 1)[1])

@@ -23,6 +23,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import BadAvatarError
+from ..rotation import minimal_rotations
 from .bonemap import BoneMap
 from .retarget import AvatarMotion, RetargetPlan
 
@@ -98,7 +99,7 @@ def normalized_motion(plan: RetargetPlan, bonemap: BoneMap, motion: AvatarMotion
         kj, parent, tpose = BONES[b]
         j = joint[b]
         if tpose is not None and plan.aim_from[j] >= 0:
-            correction[b] = _min_rotation(np.array(tpose), a.T @ plan.rest_aim[j])
+            correction[b] = minimal_rotations(np.array(tpose), a.T @ plan.rest_aim[j])
         else:
             correction[b] = correction.get(parent, np.eye(3)) if parent else np.eye(3)
         above = plan.bind_positions[joint[parent]] if parent else floor
@@ -111,19 +112,3 @@ def normalized_motion(plan: RetargetPlan, bonemap: BoneMap, motion: AvatarMotion
         rotations[:, k] = world[b] if parent is None else np.swapaxes(world[parent], 1, 2) @ world[b]
     hips = (motion.positions[:, joint[names[0]]] - floor) @ a
     return NormalizedMotion(names, np.array([rest[b] for b in names]), hips, rotations)
-
-
-def _min_rotation(u, v) -> np.ndarray:
-    """Smallest rotation taking direction u onto v (Rodrigues)."""
-    u = u / np.linalg.norm(u)
-    v = v / np.linalg.norm(v)
-    axis, c = np.cross(u, v), float(u @ v)
-    s2 = float(axis @ axis)
-    if s2 < 1e-24:
-        if c > 0:
-            return np.eye(3)
-        perp = np.cross(u, [1.0, 0.0, 0.0]) if abs(u[0]) < 0.9 else np.cross(u, [0.0, 1.0, 0.0])
-        perp /= np.linalg.norm(perp)
-        return 2.0 * np.outer(perp, perp) - np.eye(3)
-    k = np.array([[0, -axis[2], axis[1]], [axis[2], 0, -axis[0]], [-axis[1], axis[0], 0]])
-    return np.eye(3) + k + ((1.0 - c) / s2) * (k @ k)

@@ -29,6 +29,7 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from ..errors import ExportError
+from ..rotation import minimal_rotations
 from ..skeleton.models import Skeleton
 
 _ORDER = "ZXY"                 # rotation channel order written: Zrotation Xrotation Yrotation (intrinsic)
@@ -236,32 +237,9 @@ def _fit_rotations(parent_rot, rest, now):
     planar = sv[:, 1] > 1e-3 * np.maximum(sv[:, 0], 1e-12)
     # one direction (or collinear ones): swing the parent-carried rest direction onto the current one
     a1, b1 = a.sum(axis=1), b.sum(axis=1)
-    swing = _min_rotations(np.einsum("fij,fj->fi", parent_rot, a1), b1) @ parent_rot
+    swing = minimal_rotations(np.einsum("fij,fj->fi", parent_rot, a1), b1) @ parent_rot
     out = np.where(planar[:, None, None], kabsch, swing)
     return np.where(use.any(axis=1)[:, None, None], out, parent_rot)
-
-
-def _min_rotations(u, v):
-    """(F, 3, 3) smallest rotations turning directions u (F, 3) onto v (F, 3) (Rodrigues)."""
-    u = u / np.maximum(np.linalg.norm(u, axis=1, keepdims=True), 1e-12)
-    v = v / np.maximum(np.linalg.norm(v, axis=1, keepdims=True), 1e-12)
-    axis = np.cross(u, v)
-    s2 = np.einsum("fi,fi->f", axis, axis)
-    c = np.einsum("fi,fi->f", u, v)
-    k = np.zeros((len(u), 3, 3))
-    k[:, 0, 1], k[:, 0, 2], k[:, 1, 2] = -axis[:, 2], axis[:, 1], -axis[:, 0]
-    k[:, 1, 0], k[:, 2, 0], k[:, 2, 1] = axis[:, 2], -axis[:, 1], axis[:, 0]
-    scale = np.where(s2 > 1e-24, (1.0 - c) / np.maximum(s2, 1e-24), 0.5)
-    rot = np.eye(3) + k + scale[:, None, None] * (k @ k)
-    # opposite directions: half a turn about an axis perpendicular to u
-    flip = (s2 <= 1e-24) & (c < 0)
-    if flip.any():
-        perp = np.cross(u[flip], [1.0, 0.0, 0.0])
-        weak = np.linalg.norm(perp, axis=1) < 1e-6
-        perp[weak] = np.cross(u[flip][weak], [0.0, 1.0, 0.0])
-        perp /= np.linalg.norm(perp, axis=1, keepdims=True)
-        rot[flip] = 2 * np.einsum("fi,fj->fij", perp, perp) - np.eye(3)
-    return rot
 
 
 def _euler_degrees(rotations):

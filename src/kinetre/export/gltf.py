@@ -34,6 +34,7 @@ from ..graph.graph import DeformationGraph
 from ..jit import njit
 from ..lazy import import_trimesh
 from ..mesh.mesh import Mesh, column_bounds
+from ..rotation import matrix_quaternions
 
 _ALIGN = 4  # glTF: every bufferView starts on a 4-byte boundary
 
@@ -192,10 +193,8 @@ def rotation_quaternions(rotations: np.ndarray) -> np.ndarray:
     Consecutive keys of one joint are kept in the same hemisphere (q and -q are the same rotation), so a
     player's slerp between keys never takes the long way round.
     """
-    from scipy.spatial.transform import Rotation
-
-    f, n = rotations.shape[:2]
-    q = Rotation.from_matrix(rotations.reshape(-1, 3, 3)).as_quat().reshape(f, n, 4)
+    q = matrix_quaternions(rotations)
+    f = rotations.shape[0]
     for k in range(1, f):
         flip = np.einsum("nd,nd->n", q[k], q[k - 1]) < 0
         q[k, flip] *= -1.0

@@ -20,7 +20,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import BadMotionError
-from ..rotation import up_rotation
+from ..rotation import axis_rotations, up_rotation
 from ..skeleton.humanoid_map import kinect_frames, take_map
 from ..skeleton.models import KINECT20, SkeletonModel
 from .take import Take
@@ -253,20 +253,6 @@ def _parse_motion(lines, motion_at, n_channels, source):
         bad = int(np.argwhere(~np.isfinite(rows))[0, 0])
         raise BadMotionError(f"{source}: line {numbered[bad][0]}: non-finite channel value")
     return frames, frame_time, rows
-
-
-def axis_rotations(axis: int, degrees: np.ndarray) -> np.ndarray:
-    """(T, 3, 3) rotations by `degrees` (T,) about coordinate axis 0, 1 or 2 (right-handed)."""
-    a = np.radians(degrees)
-    c, s = np.cos(a), np.sin(a)
-    r = np.zeros(a.shape + (3, 3))
-    i, j = [(1, 2), (2, 0), (0, 1)][axis]
-    r[:, axis, axis] = 1.0
-    r[:, i, i] = c
-    r[:, j, j] = c
-    r[:, i, j] = -s
-    r[:, j, i] = s
-    return r
 
 
 def forward_kinematics(clip: BvhClip, frames: slice | None = None) -> np.ndarray:

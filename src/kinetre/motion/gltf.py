@@ -12,7 +12,6 @@ joint. Human skeletons are mapped to Kinect-20 by the skeleton mapper as BVH fil
 """
 from __future__ import annotations
 
-import base64
 import math
 import os
 from dataclasses import dataclass
@@ -21,14 +20,14 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import BadMotionError
+from ..gltf_read import GltfDocument, read_gltf
+from ..rotation import quaternion_matrices, slerp
 from ..skeleton.models import KINECT20, SkeletonModel
 from ..skeleton.humanoid_map import kinect_frames, take_map
 from .bvh import upright
 from .take import Take
 
 GLTF_EXTS = (".glb", ".gltf")
-_DTYPES = {5120: np.int8, 5121: np.uint8, 5122: np.int16, 5123: np.uint16, 5125: np.uint32, 5126: np.float32}
-_WIDTH = {"SCALAR": 1, "VEC2": 2, "VEC3": 3, "VEC4": 4, "MAT2": 4, "MAT3": 9, "MAT4": 16}
 _PATHS = {"translation": 3, "rotation": 4, "scale": 3}
 
 
@@ -66,70 +65,10 @@ def is_gltf(ref: str | os.PathLike) -> bool:
     return split_animation(ref)[0].lower().endswith(GLTF_EXTS)
 
 
-class _Document:
-    """A loaded glTF (pygltflib) with decoded buffers and accessors."""
-
-    def __init__(self, path: str):
-        import pygltflib as gl
-        self.path = path
-        if not os.path.isfile(path):
-            raise BadMotionError(f"{path}: no such file")
-        try:
-            self.doc = gl.GLTF2.load(path)
-        except Exception as e:  # pygltflib raises plain exceptions (JSON, struct) on a corrupt file
-            raise BadMotionError(f"{path}: not a readable glTF file ({e})") from None
-        if self.doc is None:
-            raise BadMotionError(f"{path}: not a readable glTF file")
-        self._buffers: dict[int, bytes] = {}
-
-    def buffer(self, index: int) -> bytes:
-        if index not in self._buffers:
-            buf = self.doc.buffers[index]
-            if buf.uri is None:
-                data = self.doc.binary_blob()
-            elif buf.uri.startswith("data:"):
-                data = base64.b64decode(buf.uri.split(",", 1)[1])
-            else:
-                try:
-                    data = (Path(self.path).parent / buf.uri).read_bytes()
-                except OSError as e:
-                    raise BadMotionError(f"{self.path}: buffer {buf.uri!r} cannot be read ({e.strerror})") from None
-            if data is None or len(data) < buf.byteLength:
-                raise BadMotionError(f"{self.path}: buffer {index} is shorter than its byteLength")
-            self._buffers[index] = data
-        return self._buffers[index]
-
-    def accessor(self, index: int) -> np.ndarray:
-        """(count, width) float64 values of an accessor (byteStride and normalized integers handled)."""
-        try:
-            a = self.doc.accessors[index]
-            if a.sparse is not None or a.bufferView is None:
-                raise BadMotionError(f"{self.path}: accessor {index} is sparse or has no data (not supported)")
-            bv = self.doc.bufferViews[a.bufferView]
-            dtype = np.dtype(_DTYPES[a.componentType]).newbyteorder("<")
-            width = _WIDTH[a.type]
-            item = dtype.itemsize * width
-            stride = bv.byteStride or item
-            start = (bv.byteOffset or 0) + (a.byteOffset or 0)
-            blob = np.frombuffer(self.buffer(bv.buffer), dtype=np.uint8)
-            span = stride * (a.count - 1) + item
-            if start + span > len(blob):
-                raise BadMotionError(f"{self.path}: accessor {index} runs past the end of its buffer")
-            rows = np.lib.stride_tricks.as_strided(blob[start:], shape=(a.count, item), strides=(stride, 1))
-            out = np.frombuffer(rows.copy().tobytes(), dtype=dtype).reshape(a.count, width).astype(np.float64)
-        except (IndexError, KeyError, TypeError) as e:
-            raise BadMotionError(f"{self.path}: accessor {index} is malformed ({e})") from None
-        if a.normalized and dtype.kind in "iu":
-            out = np.maximum(out / np.iinfo(dtype).max, -1.0)
-        if not np.isfinite(out).all():
-            raise BadMotionError(f"{self.path}: accessor {index} holds non-finite values")
-        return out
-
-
-def animations(path: str | os.PathLike | _Document) -> list[AnimationInfo]:
-    """The animations of a glTF file (empty when it has none); a loaded `_Document` is not parsed again
+def animations(path: str | os.PathLike | GltfDocument) -> list[AnimationInfo]:
+    """The animations of a glTF file (empty when it has none); a loaded `GltfDocument` is not parsed again
     (pygltflib's JSON decoding is most of the cost of reading a small file)."""
-    d = path if isinstance(path, _Document) else _Document(os.fspath(path))
+    d = path if isinstance(path, GltfDocument) else read_gltf(path, BadMotionError)
     out = []
     for i, anim in enumerate(d.doc.animations or []):
         times = [d.accessor(anim.samplers[c.sampler].input) for c in anim.channels]
@@ -158,20 +97,6 @@ def _pick(infos: list[AnimationInfo], which: str | int | None, path: str) -> Ani
 
 
 # ---- the sampler (glTF 2.0 §3.11, Appendix C) -------------------------------------------------------
-
-def slerp(a: np.ndarray, b: np.ndarray, u: np.ndarray) -> np.ndarray:
-    """(N, 4) unit quaternions on the shortest arc from a (N, 4) to b (N, 4) at fractions u (N,)."""
-    dot = np.einsum("ni,ni->n", a, b)
-    b = np.where(dot[:, None] < 0, -b, b)
-    dot = np.abs(dot)
-    th = np.arccos(np.clip(dot, -1.0, 1.0))
-    s = np.sin(th)
-    near = s < 1e-6  # nearly equal: the linear blend is exact to rounding
-    wa = np.where(near, 1 - u, np.sin((1 - u) * th) / np.where(near, 1.0, s))
-    wb = np.where(near, u, np.sin(u * th) / np.where(near, 1.0, s))
-    q = wa[:, None] * a + wb[:, None] * b
-    return q / np.linalg.norm(q, axis=1, keepdims=True)
-
 
 def sample(times: np.ndarray, values: np.ndarray, interpolation: str, t: np.ndarray,
            rotation: bool = False) -> np.ndarray:
@@ -221,17 +146,6 @@ def sample(times: np.ndarray, values: np.ndarray, interpolation: str, t: np.ndar
     return out
 
 
-def quaternion_matrices(q: np.ndarray) -> np.ndarray:
-    """(N, 3, 3) rotation matrices of (N, 4) quaternions (x, y, z, w), normalised first."""
-    q = q / np.linalg.norm(q, axis=1, keepdims=True)
-    x, y, z, w = q.T
-    return np.stack([
-        np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)], axis=1),
-        np.stack([2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)], axis=1),
-        np.stack([2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)], axis=1),
-    ], axis=1)
-
-
 # ---- hierarchy ---------------------------------------------------------------------------------------
 
 def _node_order(doc, path: str) -> tuple[list[int], dict[int, int]]:
@@ -256,7 +170,7 @@ def _node_order(doc, path: str) -> tuple[list[int], dict[int, int]]:
     return order, parent
 
 
-def world_matrices(d: _Document, anim_index: int | None, t: np.ndarray) -> np.ndarray:
+def world_matrices(d: GltfDocument, anim_index: int | None, t: np.ndarray) -> np.ndarray:
     """(F, N, 4, 4) world matrix of every node at times t (F,), animated by animation `anim_index`."""
     doc = d.doc
     f, n = len(t), len(doc.nodes)
@@ -301,7 +215,7 @@ def world_matrices(d: _Document, anim_index: int | None, t: np.ndarray) -> np.nd
     return world
 
 
-def skin_weights(d: _Document) -> dict[int, float]:
+def skin_weights(d: GltfDocument) -> dict[int, float]:
     """Total skin weight per joint node over the skinned meshes (empty when no mesh is skinned)."""
     doc, total = d.doc, {}
     for node in doc.nodes:
@@ -322,7 +236,7 @@ def skin_weights(d: _Document) -> dict[int, float]:
     return total
 
 
-def skeleton_nodes(d: _Document, anim_index: int | None) -> tuple[list[int], tuple[int, ...]]:
+def skeleton_nodes(d: GltfDocument, anim_index: int | None) -> tuple[list[int], tuple[int, ...]]:
     """The joint nodes (parents first) and each one's parent joint (nearest joint ancestor, -1 for none).
 
     Joints are the union of the skins' joints; a file without skins uses the animated nodes and everything
@@ -400,7 +314,7 @@ def load_gltf(path: str | os.PathLike, animation: str | int | None = None, fps: 
         animation = frag
     if not (isinstance(fps, (int, float)) and math.isfinite(fps) and fps > 0):
         raise BadMotionError(f"{path}: fps must be a positive number, got {fps!r}")
-    d = _Document(path)
+    d = read_gltf(path, BadMotionError)
     info = _pick(animations(d), animation, path)
     count = int(math.floor(info.duration * fps + 1e-6)) + 1
     t = info.start + np.arange(count) / fps

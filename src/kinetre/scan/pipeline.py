@@ -18,6 +18,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import BadScanError, ExportError
+from ..rotation import minimal_rotations
 from .depth_reading import DepthReading, depth_reading, sample_depths, size_warning
 from .frames import Intrinsics, RGBDSequence, open_sequence, read_frame
 from .features import Features, frame_features
@@ -25,7 +26,7 @@ from .fuse import TSDFVolume
 from .loop import MAX_KEYFRAMES, Edge, information, loop_edges, optimise
 from .segment import (SPECK_JOINS, changed_voxels, cut_above_plane, cut_to_voxels, dominant_plane, focus_point,
                       remove_floaters, select_object)
-from .surface import CAMERA_TO_Y_UP, MESH_SUFFIXES, ScanMesh, decimate, orient_outward, rotation_between, write_mesh
+from .surface import CAMERA_TO_Y_UP, MESH_SUFFIXES, ScanMesh, decimate, orient_outward, write_mesh
 from .recent import RecentFrames
 from .track import TrackingParams, dense_motion, track_frame
 
@@ -356,7 +357,7 @@ def _choice_report(choice, join: float) -> str:
 def _upright_on_plane(mesh: ScanMesh, plane) -> np.ndarray:
     """(4, 4) rigid transform putting the plane at y = 0 with its normal +Y and the object above the origin."""
     flip = CAMERA_TO_Y_UP[:3, :3]
-    rotation = rotation_between(flip @ plane.normal, np.array([0.0, 1.0, 0.0])) @ flip
+    rotation = minimal_rotations(flip @ plane.normal, np.array([0.0, 1.0, 0.0])) @ flip
     transform = np.eye(4)
     transform[:3, :3] = rotation
     # a point on the plane goes to y = 0; the object's footprint centre goes to x = z = 0

@@ -121,18 +121,6 @@ def orient_outward(mesh: ScanMesh, viewpoints: np.ndarray) -> ScanMesh:
     return mesh
 
 
-def rotation_between(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """(3, 3) smallest rotation taking unit vector a onto unit vector b (Rodrigues)."""
-    a, b = a / np.linalg.norm(a), b / np.linalg.norm(b)
-    v, c = np.cross(a, b), float(np.dot(a, b))
-    if c < -1.0 + 1e-9:  # opposite: half turn about any axis perpendicular to a
-        axis = np.cross(a, [1.0, 0.0, 0.0] if abs(a[0]) < 0.9 else [0.0, 1.0, 0.0])
-        axis /= np.linalg.norm(axis)
-        return 2.0 * np.outer(axis, axis) - np.eye(3)
-    vx = np.array([[0, -v[2], v[1]], [v[2], 0, -v[0]], [-v[1], v[0], 0]])
-    return np.eye(3) + vx + vx @ vx / (1.0 + c)
-
-
 def write_mesh(mesh: ScanMesh, path: str | Path) -> Path:
     """Write PLY, OBJ or GLB (by suffix) with vertex colours. Raises ExportError for other suffixes."""
     import trimesh

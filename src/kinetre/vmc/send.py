@@ -29,6 +29,7 @@ from ..avatar.bonemap import BoneMap
 from ..avatar.normalized import BONES, NormalizedMotion, normalized_motion
 from ..avatar.retarget import AvatarMotion, RetargetPlan
 from ..errors import KinetreError
+from ..rotation import matrix_quaternions
 
 __all__ = ["BLEND_NAMES", "BONES", "MIRROR", "PORT", "VmcFrames", "VmcSender", "blend_frames", "frame_bundle",
            "parse_address", "unity_frames", "vmc_frames"]
@@ -168,5 +169,4 @@ class VmcSender:
 
 def _unity_quaternion(r: np.ndarray) -> np.ndarray:
     """(T, 3, 3) rotations (right-handed, avatar facing +Z) -> (T, 4) Unity quaternions (x, y, z, w)."""
-    from scipy.spatial.transform import Rotation
-    return unity_from_gltf_quaternion(Rotation.from_matrix(r).as_quat())
+    return unity_from_gltf_quaternion(matrix_quaternions(r))
