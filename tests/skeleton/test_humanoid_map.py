@@ -39,9 +39,8 @@ def load(data_dir, name) -> Skel:
 # The expected map of each public file (Kinect joint -> its joint name); Hand/Foot may also be derived.
 BVH_TRUTH = {
     "cmu_01_01_hops.bvh": "cmu", "cmu_12_01_walk.bvh": "cmu", "mixamo_rig_freebvh.bvh": "mixamo",
-    "mocapbank_test.bvh": "mocapbank", "pybvh_test1.bvh": "pybvh",
+    "mocapbank_test.bvh": "mocapbank", "pybvh_test1.bvh": "cmu",
 }
-_LR = {"Left": "Left", "Right": "Right"}
 TRUTH_TABLES = {
     "cmu": dict(HipCenter="Hips", Spine="Spine", ShoulderCenter="Neck", Head="Head", Shoulder="{S}Arm",
                 Elbow="{S}ForeArm", Wrist="{S}Hand", Hip="{S}UpLeg", Knee="{S}Leg", Ankle="{S}Foot",
@@ -53,9 +52,6 @@ TRUTH_TABLES = {
     "mocapbank": dict(HipCenter="Hips", Spine="Chest", ShoulderCenter="Neck", Head="Head", Shoulder="{S}Shoulder",
                       Elbow="{S}Elbow", Wrist="{S}Wrist", Hip="{S}Hip", Knee="{S}Knee", Ankle="{S}Ankle",
                       Foot="{S}Ankle_End"),
-    "pybvh": dict(HipCenter="Hips", Spine="Spine", ShoulderCenter="Neck", Head="Head", Shoulder="{S}Arm",
-                  Elbow="{S}ForeArm", Wrist="{S}Hand", Hip="{S}UpLeg", Knee="{S}Leg", Ankle="{S}Foot",
-                  Foot="{S}ToeBase"),
     "RiggedFigure.glb": dict(HipCenter="torso_joint_1", Spine="torso_joint_2", ShoulderCenter="neck_joint_1",
                              Head="neck_joint_2", Shoulder="arm_joint_{C}_1", Elbow="arm_joint_{C}_2",
                              Wrist="arm_joint_{C}_3", Hip="leg_joint_{C}_1", Knee="leg_joint_{C}_2",
@@ -148,9 +144,6 @@ CONVENTIONS = {
                    Elbow="mixamorig:{S}ForeArm", Wrist="mixamorig:{S}Hand", Hand="mixamorig:{S}HandMiddle1",
                    Hip="mixamorig:{S}UpLeg", Knee="mixamorig:{S}Leg", Ankle="mixamorig:{S}Foot",
                    Foot="mixamorig:{S}ToeBase"),
-    "mixamo-bare": dict(HipCenter="Hips", Spine="Spine", ShoulderCenter="Neck", Head="Head", Collar="{S}Shoulder",
-                        Shoulder="{S}Arm", Elbow="{S}ForeArm", Wrist="{S}Hand", Hand="{S}HandMiddle1",
-                        Hip="{S}UpLeg", Knee="{S}Leg", Ankle="{S}Foot", Foot="{S}ToeBase"),
     "cmu": dict(HipCenter="Hips", Spine="Spine", ShoulderCenter="Neck", Head="Head", Collar="{S}Shoulder",
                 Shoulder="{S}Arm", Elbow="{S}ForeArm", Wrist="{S}Hand", Hand="{S}FingerBase", Hip="{S}UpLeg",
                 Knee="{S}Leg", Ankle="{S}Foot", Foot="{S}ToeBase"),
@@ -183,6 +176,7 @@ CONVENTIONS = {
                       Shoulder="{s}_shoulder", Elbow="{s}_elbow", Wrist="{s}_wrist", Hand="{s}_index",
                       Hip="{s}_hip", Knee="{s}_knee", Ankle="{s}_ankle", Foot="{s}_foot_index"),
 }
+CONVENTIONS["mixamo-bare"] = {k: v.replace("mixamorig:", "") for k, v in CONVENTIONS["mixamo"].items()}
 TORSO = ("HipCenter", "Spine", "ShoulderCenter", "Head")
 
 
