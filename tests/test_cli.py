@@ -66,7 +66,7 @@ def test_info_on_each_kind(capsys, data_dir, spot):
     assert code == 0 and "mesh, 3225 vertices, 5856 faces" in out and "UVs: yes" in out
     code, out, _ = run(capsys, "info", data_dir / "bvh" / "cmu_01_01_hops.bvh")
     assert code == 0 and "31 joints + 7 end sites, 96 channels, 2752 frames at 120 fps" in out
-    assert "HipLeft<-LeftUpLeg" in out and "unit: cmu" in out
+    assert "HipLeft <- LeftUpLeg (name)" in out and "unit: cmu" in out
     code, out, _ = run(capsys, "info", data_dir / "video" / "pose_1.mp4")
     assert code == 0 and "576x576, 120 frames at 30 fps" in out
 

@@ -505,3 +505,20 @@ def test_docstring_examples():
     for module in (kinetre.skeleton.humanoid_map, kinetre.rotation):
         result = doctest.testmod(module, optionflags=doctest.NORMALIZE_WHITESPACE)
         assert result.attempted > 0 and result.failed == 0, module.__name__
+
+
+@pytest.mark.parametrize("name", ["RiggedFigure.glb", "robot_quaternius.glb", "CesiumMan.glb"])
+def test_an_avatar_and_its_own_animations_map_alike(data_dir, name):
+    """One skeleton, one map: the avatar's bone map and the map its animations are read by agree."""
+    from kinetre.avatar.bonemap import map_bones
+    from kinetre.motion.gltf import animation_skeleton
+    avatar = load_avatar(data_dir / "avatars" / name)
+    as_avatar = map_bones(avatar)
+    names, parents, rest = animation_skeleton(data_dir / "avatars" / name)
+    as_motion = take_map(names, parents, rest)
+    assert as_motion is not None
+    assert as_motion.joints.keys() == as_avatar.joints.keys() and as_motion.derived.keys() == as_avatar.derived.keys()
+    # the same joints (unnamed nodes are named differently by the two readers: compare where they stand)
+    size = np.ptp(avatar.bind_positions, axis=0).max()
+    for kj, j in as_avatar.joints.items():
+        np.testing.assert_allclose(rest[as_motion.joints[kj]], avatar.bind_positions[j], atol=1e-3 * size, err_msg=kj)

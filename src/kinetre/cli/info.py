@@ -1,4 +1,6 @@
-"""`kinetre info FILE`: what a mesh, glTF, BVH, take or video holds, and how the other commands can use it."""
+"""`kinetre info FILE`: what a mesh, glTF, BVH, take or video holds, and how the other commands can use it;
+for every skeleton (BVH, glTF animation, avatar, take) the map to Kinect-20: which source joint plays which
+joint, which are derived, which are untracked and why."""
 from __future__ import annotations
 
 import os
@@ -25,17 +27,19 @@ def cmd_info(args) -> int:
         _info_take(read_stream(path), "recorded take")
     elif low.endswith(VIDEO_EXTS):
         _info_video(path)
-    elif split_animation(path)[0].lower().endswith((".glb", ".gltf")):
-        _info_gltf(split_animation(path)[0])
+    elif split_animation(path)[0].lower().endswith((".glb", ".gltf", ".vrm")):
+        _info_gltf(path)
     else:
         _info_mesh(path)
     return 0
 
 
-def _info_gltf(path: str) -> None:
-    """A glTF: its mesh (if any) and its animations, each usable as `--motion FILE#NAME`."""
+def _info_gltf(ref: str) -> None:
+    """A glTF: its mesh (if any), its avatar map when it is skinned, its animations (each usable as
+    `--motion FILE#NAME`) and the map of the skeleton they move."""
     import kinetre
-    from ..motion.gltf import animations, load_gltf
+    from ..motion.gltf import animation_skeleton, animations, load_gltf, split_animation
+    path, frag = split_animation(ref)
     anims = animations(path)
     try:
         _info_mesh(path)
@@ -43,14 +47,54 @@ def _info_gltf(path: str) -> None:
         if not anims:
             raise
         print(f"{path}: glTF without a mesh")
+    _info_avatar(path)
     if not anims:
         print("  animations: none")
         return
-    take = load_gltf(path, 0, as_kinect=False)
-    print(f"  skeleton: {len(take.model.joints)} joints ({', '.join(take.model.joints)})")
+    own = load_gltf(path, frag, as_kinect=False).model            # the bones it drives a mesh by
+    print(f"  skeleton: {len(own.joints)} joints ({', '.join(own.joints)})")
     print(f"  animations ({len(anims)}), use as --motion {os.path.basename(path)}#NAME or #INDEX:")
     for a in anims:
         print(f"    #{a.index} {a.name}: {a.duration:.2f} s, {a.channels} channels")
+    _print_motion_map(*animation_skeleton(path, frag), f"--motion {os.path.basename(ref)}")
+
+
+def _info_avatar(path: str) -> None:
+    """The bone map of a rigged file, as `kinetre avatar` uses it (silent for an unrigged one)."""
+    from ..avatar.bonemap import auto_map, can_drive, upright_problems
+    from ..avatar.load import load_avatar
+    from ..errors import BadAvatarError
+    try:
+        avatar = load_avatar(path)
+    except BadAvatarError:
+        return
+    bonemap = auto_map(avatar)
+    problems = upright_problems(bonemap, avatar.bind_positions)
+    if problems:
+        verdict = f"not an upright humanoid ({'; '.join(problems)}): possess it with kinetre animate"
+    elif can_drive(bonemap):
+        verdict = f"drivable by kinetre avatar, {len(bonemap.joints)} of 20 joints mapped"
+    else:
+        verdict = "too little maps to drive it: name the joints in a saved map (kinetre avatar --write-map)"
+    print(f"  avatar: {len(avatar.joints)} skin joints; bone map: {verdict}")
+    _print_map(bonemap)
+
+
+def _print_motion_map(names, parents, rest, usage: str) -> None:
+    from ..skeleton.humanoid_map import map_humanoid, not_humanoid
+    hmap = map_humanoid(names, parents, rest)
+    why = not_humanoid(hmap, rest)
+    if why:
+        print(f"  Kinect-20 map: none ({why}): {usage} drives a mesh by its own bones")
+        return
+    tracked = len(hmap.joints) + len(hmap.derived)
+    print(f"  Kinect-20 map: a humanoid, {tracked} of 20 joints tracked ({len(hmap.derived)} derived)")
+    _print_map(hmap)
+
+
+def _print_map(hmap) -> None:
+    for line in hmap.describe():
+        print(f"    {line}")
 
 
 def _info_take(take, kind: str) -> None:
@@ -62,12 +106,28 @@ def _info_take(take, kind: str) -> None:
     lo, hi = np.nanmin(take.positions, axis=(0, 1)), np.nanmax(take.positions, axis=(0, 1))
     print(f"  extent (m): x {lo[0]:.2f}..{hi[0]:.2f}  y {lo[1]:.2f}..{hi[1]:.2f}  z {lo[2]:.2f}..{hi[2]:.2f}")
     print(f"  joints: {', '.join(take.model.joints)}")
+    if kind == "recorded take":
+        _print_take_map(take)
+
+
+def _print_take_map(take) -> None:
+    """A take on Kinect-20 or OpenNI-17 is a body already; another skeleton is mapped from its first frame."""
+    import numpy as np
+    name = take.model.name
+    if name == "kinect20":
+        print("  Kinect-20 map: the take's own joints (Kinect-20)")
+    elif name == "openni17":
+        print("  Kinect-20 map: from OpenNI-17 by its fixed table; HandLeft, HandRight, FootLeft, FootRight untracked "
+              "(OpenNI has no hands and feet)")
+    else:
+        _print_motion_map(take.model.joints, take.model.parents, np.nan_to_num(take.positions[0]),
+                          f"--motion {os.path.basename(take.source or 'take')}")
 
 
 def _info_bvh(path: str) -> None:
     import numpy as np
 
-    from ..motion.bvh import detect_unit, kinect_map, load_bvh, parse_bvh, rest_positions
+    from ..motion.bvh import detect_unit, load_bvh, parse_bvh, rest_positions
     try:
         text = Path(path).read_text(encoding="utf-8", errors="replace")
     except FileNotFoundError:
@@ -78,11 +138,7 @@ def _info_bvh(path: str) -> None:
     print(f"{path}: BVH, {len(clip.names) - n_end} joints + {n_end} end sites, {clip.motion.shape[1]} channels, "
           f"{len(clip.motion)} frames at {clip.fps:g} fps ({(len(clip.motion) - 1) * clip.frame_time:.2f} s)")
     print(f"  unit: {unit} ({per:.4g} m per file unit)")
-    mapping = kinect_map(clip.names, clip.parents)
-    if mapping is None:
-        print("  Kinect-20 map: no (core joints not found by name): drives a mesh by its own bones")
-    else:
-        print("  Kinect-20 map: " + ", ".join(f"{k}<-{v}" for k, v in mapping[1].items()))
+    _print_motion_map(clip.names, clip.parents, rest_positions(clip) * per, f"--motion {os.path.basename(path)}")
     _info_take(load_bvh(path), "as loaded")
 
 

@@ -236,13 +236,15 @@ def skin_weights(d: GltfDocument) -> dict[int, float]:
     return total
 
 
-def skeleton_nodes(d: GltfDocument, anim_index: int | None) -> tuple[list[int], tuple[int, ...]]:
+def skeleton_nodes(d: GltfDocument, anim_index: int | None,
+                   handles: bool = False) -> tuple[list[int], tuple[int, ...]]:
     """The joint nodes (parents first) and each one's parent joint (nearest joint ancestor, -1 for none).
 
     Joints are the union of the skins' joints; a file without skins uses the animated nodes and everything
-    below them. Handles above the body are left out: joints that move no vertex and have no ancestor that
-    does, but have descendants that do (Fox's `_rootJoint` on the ground): their bone to the hips would
-    otherwise pull on the belly.
+    below them. Unless `handles`, handles above the body are left out: joints that move no vertex and have
+    no ancestor that does, but have descendants that do (Fox's `_rootJoint` on the ground): their bone to the
+    hips would otherwise pull on the belly. The skeleton mapper keeps them: such a joint may be where the
+    legs branch (as for avatars, which map all their skin joints).
     """
     doc = d.doc
     order, parent = _node_order(doc, d.path)
@@ -253,7 +255,7 @@ def skeleton_nodes(d: GltfDocument, anim_index: int | None) -> tuple[list[int], 
         for i in order:
             if i in targets or parent.get(i) in joints:
                 joints.add(i)
-    weight = skin_weights(d)
+    weight = {} if handles else skin_weights(d)
     if weight:
         moved_below: dict[int, bool] = {}
         for i in reversed(order):  # children before parents
@@ -290,6 +292,22 @@ def _names(doc, nodes: list[int]) -> tuple[str, ...]:
     return tuple(names)
 
 
+def _skeleton(d: GltfDocument, index: int, handles: bool = False):
+    nodes, parents = skeleton_nodes(d, index, handles)
+    rest = world_matrices(d, None, np.zeros(1))[0, nodes][:, :3, 3]
+    return nodes, _names(d.doc, nodes), parents, rest
+
+
+def animation_skeleton(path: str | os.PathLike, animation: str | int | None = None):
+    """(names, parents, rest positions (J, 3)) of the skeleton one animation moves ("file.glb#NAME" or
+    `animation`; default the first), handles included: what `load_gltf` maps to Kinect-20."""
+    path, frag = split_animation(path)
+    d = read_gltf(path, BadMotionError)
+    info = _pick(animations(d), frag if animation is None else animation, path)
+    _, names, parents, rest = _skeleton(d, info.index, handles=True)
+    return names, parents, rest
+
+
 def load_gltf(path: str | os.PathLike, animation: str | int | None = None, fps: float = 30.0,
               as_kinect: bool = True) -> Take:
     """One animation of a glTF/GLB file as a `Take` (the file's units, which glTF defines as metres).
@@ -318,14 +336,15 @@ def load_gltf(path: str | os.PathLike, animation: str | int | None = None, fps: 
     info = _pick(animations(d), animation, path)
     count = int(math.floor(info.duration * fps + 1e-6)) + 1
     t = info.start + np.arange(count) / fps
-    nodes, parents = skeleton_nodes(d, info.index)
-    names = _names(d.doc, nodes)
-    positions = world_matrices(d, info.index, t)[:, nodes][..., :3, 3]
+    world = world_matrices(d, info.index, t)
     source = f"{path}#{info.name}"
-    rest = world_matrices(d, None, np.zeros(1))[0, nodes][:, :3, 3]
-    hmap = take_map(names, parents, rest) if as_kinect else None
-    if hmap is not None:
-        positions, tracked = kinect_frames(hmap, positions)
-        return Take(KINECT20, positions @ upright(hmap, rest).T, tracked, float(fps), source)
+    if as_kinect:
+        nodes, names, parents, rest = _skeleton(d, info.index, handles=True)
+        hmap = take_map(names, parents, rest)
+        if hmap is not None:
+            positions, tracked = kinect_frames(hmap, world[:, nodes][..., :3, 3])
+            return Take(KINECT20, positions @ upright(hmap, rest).T, tracked, float(fps), source)
+    nodes, names, parents, rest = _skeleton(d, info.index)
+    positions = world[:, nodes][..., :3, 3]
     model = SkeletonModel(f"gltf:{Path(path).stem}", names, parents)
     return Take(model, positions, np.ones(positions.shape[:2], dtype=bool), float(fps), source)

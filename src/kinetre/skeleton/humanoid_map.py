@@ -166,14 +166,33 @@ class HumanoidMap:
                 out[kj] = " + ".join(f"{a:g} {self.names[j]}" for j, a in self.derived[kj]).replace("+ -", "- ")
         return out
 
+    def why(self, kj: str) -> str:
+        """Why Kinect joint `kj` is untracked (for one of `unmapped`)."""
+        part, side = _kinect_part(kj)
+        if not side:
+            return "no joint of the spine plays it"
+        chain = _chain_of(kj)
+        have = [k for k in chain if k in self.joints]
+        if not have:
+            return f"no {side.lower()} {next(limb for limb, parts in LIMBS.items() if part in parts)} maps"
+        i = chain.index(kj)
+        before = [k for k in chain[:i] if k in self.joints]
+        after = [k for k in chain[i + 1:] if k in self.joints]
+        if before and after:
+            return f"no joint between {self.names[self.joints[before[-1]]]} and {self.names[self.joints[after[0]]]}"
+        if before:
+            return f"nothing beyond {self.names[self.joints[before[-1]]]} and no bone before it to extend"
+        return f"no joint before {self.names[self.joints[after[0]]]}"
+
     def describe(self) -> list[str]:
-        """Lines: each Kinect joint <- source joint (how), then what is derived and what does not map."""
+        """Lines: each Kinect joint <- source joint (how), then what is derived, what does not map and why."""
         lines = [f"{kj} <- {self.names[self.joints[kj]]} ({self.how[kj]})" for kj in KINECT20.joints
                  if kj in self.joints]
         d = self.drivers()
         lines += [f"{kj} <- {d[kj]} (derived)" for kj in KINECT20.joints if kj in self.derived]
         if self.unmapped:
             lines.append(f"not mapped (untracked): {', '.join(self.unmapped)}")
+            lines += [f"  {kj}: {self.why(kj)}" for kj in self.unmapped]
         return lines + list(self.notes)
 
 
@@ -267,11 +286,16 @@ def take_map(names, parents, rest: np.ndarray | None, fixed: dict | None = None)
     (no hip centre, mapped or derived; no limb chain; or legs that do not continue its spine:
     an animal then drives a mesh by its own bones). Without `rest`, names and topology alone decide."""
     hmap = map_humanoid(names, parents, np.zeros((len(names), 3)) if rest is None else rest, fixed=fixed)
-    if not hmap.limbs or "HipCenter" not in hmap.joints and "HipCenter" not in hmap.derived:
-        return None
-    if rest is not None and upright_problems(hmap, rest, up=None):
-        return None
-    return hmap
+    return None if not_humanoid(hmap, rest) else hmap
+
+
+def not_humanoid(hmap: HumanoidMap, rest: np.ndarray | None) -> str:
+    """Why a motion source's map does not make it a humanoid ("" when it does), for `take_map`."""
+    if not hmap.limbs:
+        return "no limb chain maps"
+    if "HipCenter" not in hmap.joints and "HipCenter" not in hmap.derived:
+        return "no hip centre maps"
+    return "; ".join(upright_problems(hmap, rest, up=None)) if rest is not None else ""
 
 
 def kinect_frames(hmap: HumanoidMap, positions: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
