@@ -522,3 +522,18 @@ def test_an_avatar_and_its_own_animations_map_alike(data_dir, name):
     size = np.ptp(avatar.bind_positions, axis=0).max()
     for kj, j in as_avatar.joints.items():
         np.testing.assert_allclose(rest[as_motion.joints[kj]], avatar.bind_positions[j], atol=1e-3 * size, err_msg=kj)
+
+
+def test_a_take_that_kept_its_own_bones_drives_an_avatar(data_dir):
+    from kinetre.avatar.bonemap import kinect_take
+    from kinetre.motion.bvh import load_bvh
+    own = load_bvh(data_dir / "bvh" / "cmu_12_01_walk.bvh", as_kinect=False)
+    mapped = load_bvh(data_dir / "bvh" / "cmu_12_01_walk.bvh")
+    tracked = own.tracked.copy()
+    tracked[5, own.model.joints.index("LeftForeArm")] = False    # a joint lost in one frame
+    own = type(own)(own.model, own.positions, tracked, own.fps, own.source)
+    take = kinect_take(own)
+    assert take.model.name == "kinect20"
+    np.testing.assert_allclose(take.positions[0], mapped.positions[0], atol=1e-9)   # the file's up is +Y
+    assert not take.tracked[5, KINECT20.index("ElbowLeft")] and take.tracked[5].sum() == 19
+    assert take.tracked[4].all()

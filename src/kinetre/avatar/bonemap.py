@@ -13,7 +13,8 @@ import os
 import numpy as np
 
 from ..errors import BadAvatarError, BadMotionError
-from ..skeleton.humanoid_map import REQUIRED, UP, HumanoidMap, map_humanoid, parse_table, table_of, upright_problems
+from ..skeleton.humanoid_map import (REQUIRED, UP, HumanoidMap, kinect_frames, map_humanoid, not_humanoid, parse_table,
+                                     table_of, upright_problems)
 from ..skeleton.models import KINECT20, OPENNI17
 from .load import Avatar
 
@@ -148,12 +149,21 @@ def kinect_from_openni(positions: np.ndarray, tracked: np.ndarray) -> tuple[np.n
 
 
 def kinect_take(take):
-    """A take on Kinect-20 (OpenNI-17 takes converted); other skeletons cannot drive a humanoid."""
+    """A take on Kinect-20: OpenNI-17 takes converted, a take of another skeleton (a recorded take that kept
+    its own bones) mapped by the skeleton mapper from its first frame; a non-human cannot drive an avatar."""
     from ..motion.source import Take
     if take.model.name == "kinect20":
         return take
     if take.model.name == "openni17":
         pos, tracked = kinect_from_openni(take.positions, take.tracked)
         return Take(KINECT20, pos, tracked, take.fps, take.source)
-    raise BadMotionError(f"{take.source}: its skeleton ({take.model.name}) has no Kinect-20 map, so it cannot "
-                         "drive a humanoid avatar (name the joints like Mixamo/CMU/Kinect)")
+    rest = np.nan_to_num(take.positions[0])
+    hmap = map_humanoid(take.model.joints, take.model.parents, rest)
+    why = not_humanoid(hmap, rest)
+    if why:
+        raise BadMotionError(f"{take.source}: its skeleton ({take.model.name}) is not a humanoid ({why}), so it "
+                             "cannot drive a humanoid avatar (name the joints like Mixamo/CMU/Kinect, or possess a "
+                             "mesh with it: kinetre animate)")
+    pos, tracked = kinect_frames(hmap, np.nan_to_num(take.positions))
+    lost = (~take.tracked).astype(np.float64) @ (hmap.weights() != 0).T.astype(np.float64) > 0   # a source lost
+    return Take(KINECT20, pos, tracked & ~lost, take.fps, take.source)
