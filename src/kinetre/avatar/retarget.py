@@ -32,7 +32,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..jit import njit
-from ..skeleton.attach import minimal_rotation
+from ..rotation import minimal_rotations
 from ..skeleton.models import KINECT20
 from .bonemap import BoneMap
 from .load import Avatar
@@ -513,7 +513,7 @@ def retarget_fingers(avatar: Avatar, plan: RetargetPlan, fingers, motion: Avatar
             d, side, a, b = aims[j]
             s = src[:, side, b] - src[:, side, a]
             ok = np.isfinite(s).all(axis=1) & (np.linalg.norm(np.nan_to_num(s), axis=1) > 1e-9)
-            w = minimal_rotation(_unit(np.einsum("tij,j->ti", parent, d)), _unit(np.nan_to_num(s))) @ parent
+            w = minimal_rotations(_unit(np.einsum("tij,j->ti", parent, d)), _unit(np.nan_to_num(s))) @ parent
             relative = _hold(np.swapaxes(parent, 1, 2) @ w, ok, eye)
         else:         # carried along: what it had relative to its parent
             relative = np.swapaxes(motion.rotations[:, vp], 1, 2) @ motion.rotations[:, j]
