@@ -12,17 +12,25 @@ A skeleton is given as joint names, parents and a rest pose (`map_humanoid`). Th
    twist, IK, pole and roll helpers never match;
 3. topology: the pelvis is where the legs leave (their common ancestor), the shoulder centre is where the
    arm chains branch off the spine, the head continues the spine above it, a hand (foot) is the wrist's
-   (ankle's) child;
-4. bind-pose geometry, for what names and topology leave open: the pelvis is the shallowest joint with
-   two child chains reaching down and one reaching up; up that chain the chest is the first joint with two
-   chains reaching out sideways; along a limb the two longest consecutive bones are the upper and lower
-   limb; left and right come from the facing (the feet's ankle -> toe, else +Z).
+   (ankle's) first child that is no finger;
+4. bind-pose geometry, for what names and topology leave open: the pelvis is the shallowest joint with a
+   chain reaching up and two reaching down; up that chain the chest is the first joint with two chains
+   reaching away (held out or hanging); along a limb the two longest consecutive bones starting off the
+   body's centre line are the upper and lower limb (a clavicle from the chest's middle is not); left and
+   right come from the facing (the feet's ankle -> toe, else +Z). A skeleton that does not stand along +Y
+   (a Z-up file) is tried along the other axes. Geometry fills a gap only in order along its chain and
+   never with a helper joint.
+
+Sides: where both feet have toes, the toes give the facing independently of any name; a limb pair whose
+joint named left stands on the right of it (a mirrored skeleton: names that lie) is swapped, and the map
+says so (`HumanoidMap.notes`). Without toes the names are kept.
 
 Kinect-20 joints the skeleton lacks are derived where the paper's skeleton needs them: the Spine a quarter
 of the way from the hip centre to the shoulder centre, a missing hip (shoulder) centre halfway between the
-two hips (shoulders), a Hand (Foot) by extending the forearm (shin) by a quarter. What neither maps nor can
-be derived is reported (`HumanoidMap.missing`) and left untracked; a skeleton is refused as a humanoid only
-when it has neither a root (hip centre) nor a limb chain (`HumanoidMap.drivable`).
+two hips (shoulders), a Hand (Foot) by extending the forearm (shin) by a quarter, or the whole arm (leg) by
+an eighth without an elbow (knee). What neither maps nor can be derived is reported (`HumanoidMap.missing`,
+`HumanoidMap.why`) and left untracked; a skeleton is refused as a humanoid only when it has neither a root
+(hip centre) nor a limb chain (`HumanoidMap.drivable`).
 """
 from __future__ import annotations
 
