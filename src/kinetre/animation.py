@@ -44,7 +44,7 @@ class AnimateSettings:
     solve : solve every frame and skin the graph (False: only place the skeleton, for skeleton outputs)
     """
 
-    nodes: int = 128
+    nodes: int = 256
     seed: int = 0
     subset: str | tuple[str, ...] | None = None
     bind_frame: int = 0
@@ -65,7 +65,7 @@ class Animation:
     graph : its deformation graph with skinning weights (without them when nothing was solved)
     poses : one GraphPose per take frame, in the output's units (empty when nothing was solved)
     take : the placed skeleton in the output's units, one frame per pose
-    placement : where the take went relative to the mesh
+    placement : where the take went relative to the mesh (`Placement.method`: how it was found)
     rig : the possessed graph (in the solve frame)
     shape_fit : the shapes' fit for a non-human source (None for a person)
     notes : warnings in words about a poor match
@@ -106,6 +106,7 @@ def animate(mesh: Mesh, take: Take, settings: AnimateSettings = AnimateSettings(
     import kinetre
     from .deform.solver import SolverSettings
     from .motion.fit import fit_take
+    from .motion.in_place import in_place
 
     s = settings
     if s.nodes < 2:
@@ -127,7 +128,11 @@ def animate(mesh: Mesh, take: Take, settings: AnimateSettings = AnimateSettings(
     lap("graph")
     fit_mesh = s.fit == "mesh"
     shape = None
-    if take.model == kinetre.KINECT20:  # a person: face +Z, scale to height
+    standing = _standing_source(take, mesh, s)
+    if standing is not None:  # the source already stands inside the mesh: all its bones, where they are
+        take, fit_mesh = standing, False
+        placement, notes = in_place(mesh), ()
+    elif take.model == kinetre.KINECT20:  # a person: face +Z, scale to height
         if s.fit in ("height", "length"):
             raise BadSettingsError("--fit height|length applies to non-human skeletons (people are fitted by "
                                    "height)")
@@ -145,7 +150,8 @@ def animate(mesh: Mesh, take: Take, settings: AnimateSettings = AnimateSettings(
     bind = placed.frame(s.bind_frame)
     solver = SolverSettings() if s.solver is None else SolverSettings(method=s.solver)
     subset = list(s.subset) if isinstance(s.subset, tuple) else s.subset
-    rig = kinetre.attach(solve_graph, bind, subset=subset, settings=solver)
+    rig = kinetre.attach(solve_graph, bind, subset=subset, settings=solver,
+                         node_bones=placement.method == "in place", rigid=True)
     step("attach")
     notes = notes + _attach_notes(take, rig, s.subset)
     lap("attach")
@@ -164,6 +170,21 @@ def animate(mesh: Mesh, take: Take, settings: AnimateSettings = AnimateSettings(
         seconds["weights_wait_s"] = time.perf_counter() - wait
     graph_out = placement.graph(graph) if fit_mesh else graph
     return Animation(mesh_out, graph_out, tuple(poses), out_take, placement, rig, shape, notes, seconds)
+
+
+def _standing_source(take: Take, mesh: Mesh, s: AnimateSettings) -> Take | None:
+    """The take to drive with where it stands when the source already lies inside the mesh (its own
+    skeleton when it was mapped to Kinect-20), else None. A placement asked for (a turn, a size fit, a joint
+    subset named on the mapped skeleton) keeps the fitting path."""
+    from .motion.in_place import stands_inside
+    from .skeleton.models import KINECT20
+
+    if s.yaw is not None or s.flip or s.fit is not None or s.subset is not None:
+        return None
+    source = take.native if take.native is not None else take if take.model != KINECT20 else None
+    if source is None or not stands_inside(source, mesh, s.bind_frame):
+        return None
+    return source
 
 
 def _weigh_in_background(graph, mesh):

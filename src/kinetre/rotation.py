@@ -113,3 +113,6 @@ def minimal_rotations(u: np.ndarray, v: np.ndarray) -> np.ndarray:
         perp /= np.linalg.norm(perp, axis=1, keepdims=True)
         rot[flip] = 2 * np.einsum("fi,fj->fij", perp, perp) - np.eye(3)
     return rot.reshape(shape + (3, 3))
+
+
+

@@ -95,7 +95,13 @@ def test_sampler_clamps_and_slerps_the_short_way():
 
 def test_fox_walk_is_the_files_own_skeleton(data_dir):
     take = load_take(data_dir / "avatars" / "Fox.glb#Walk")
-    assert take.model.name == "gltf:Fox" and len(take.model.joints) == 22  # the two ground handles left out
+    assert take.model.name == "gltf:Fox"
+    own = [j for j in take.model.joints if not j.endswith(".tip")]
+    assert len(own) == 22 and take.model.joints[:22] == tuple(own)  # the two ground handles left out
+    # the last joints that carry a skinned part (head, front paws, tail end) get a tip after the file's joints
+    tips = take.model.joints[22:]
+    assert sorted(tips) == ["b_Head_05.tip", "b_LeftHand_011.tip", "b_RightHand_08.tip", "b_Tail03_014.tip"]
+    assert all(take.model.joints[take.model.parents[take.model.index(t)]] == t[:-4] for t in tips)
     assert take.model.joints[0] == "b_Hip_01" and take.model.parents[0] == -1
     head = take.model.index("b_Head_05")
     assert take.model.joints[take.model.parents[head]] == "b_Neck_04"

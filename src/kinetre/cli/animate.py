@@ -36,7 +36,7 @@ def register(sub) -> None:
                    help="RGB-D input: Open3D PinholeCameraIntrinsic JSON or 3x3 matrix TXT (default: the folder's)")
     p.add_argument("--voxel", type=float, default=None, help="RGB-D input: TSDF voxel size in metres (default 0.006)")
     p.add_argument("-o", "--output", required=True, help=f"output: {' '.join(ANIMATE_OUTPUTS)}")
-    p.add_argument("--nodes", type=int, default=128, help="graph nodes (default 128)")
+    p.add_argument("--nodes", type=int, default=256, help="graph nodes (default 256)")
     p.add_argument("--seed", type=int, default=0, help="graph sampling seed (default 0)")
     p.add_argument("--subset", action="append", metavar="JOINTS",
                    help='joints that drive, e.g. "right arm" or "HipCenter,right arm" (repeatable)')
@@ -142,9 +142,12 @@ def _animate(args, stats: dict | None) -> int:
         say(f"fitted from the shapes: front by {shape.front}, turned {shape.turn:.0f} deg, size ratios "
             f"height {shape.ratios[0]:.3g} length {shape.ratios[1]:.3g}, {100 * shape.inside:.0f} % of the "
             f"bones inside the mesh")
+    if placement.method == "in place":
+        say(f"the motion's own skeleton ({len(result.take.model.joints)} joints) stands inside the mesh: "
+            f"used where it stands")
     att = rig.attachments[0]
-    joints = [take.model.joints[j] for j in rig.attached_joints[0]]
-    bind_height = placement.take(take).frame(args.bind_frame).height
+    joints = [att.bind.model.joints[j] for j in rig.attached_joints[0]]
+    bind_height = att.bind.height
     say(f"attached {len(joints)} joint(s) ({', '.join(joints) or 'none'}), {int((att.bone >= 0).sum())} bone "
         f"samples, {len(rig.nodes_used)} of {rig.graph.node_count} nodes (mesh scaled by "
         f"{placement.mesh_scale:.4g} to the {bind_height:.2f} m skeleton)")

@@ -47,6 +47,7 @@ def cmd_avatar(args) -> int:
     from ..avatar.bonemap import describe, kinect_take, map_bones, map_path, write_map
     from ..avatar.drive import hands_and_face
     from ..avatar.load import load_avatar
+    from ..avatar.own_motion import own_joints, own_motion
     from ..avatar.retarget import plan_retarget, retarget
 
     say = (lambda *a: None) if args.quiet else print
@@ -74,7 +75,11 @@ def cmd_avatar(args) -> int:
 
     if args.motion.lower().endswith(VIDEO_EXTS):
         quiet_mediapipe()
-    take = kinect_take(load_motion(args.motion, args.scale))
+    loaded = load_motion(args.motion, args.scale)
+    # the avatar's own animation plays as its artist made it; any other motion is retargeted through Kinect-20
+    own = args.vmc is None and args.person is None and \
+        own_joints(avatar, loaded.native if loaded.native is not None else loaded) is not None
+    take = loaded if own else kinect_take(loaded)
     if args.person is not None:
         take = take.person(args.person)
     frames = frame_range(args.frames)
@@ -83,7 +88,12 @@ def cmd_avatar(args) -> int:
     if args.max_frames is not None:
         take = take.slice(0, max(1, args.max_frames))
     plan = plan_retarget(avatar, bonemap)
-    motion = retarget(plan, take.positions, take.tracked)
+    motion = own_motion(avatar, take) if own else None
+    if motion is None:
+        take = kinect_take(take)
+        motion = retarget(plan, take.positions, take.tracked)
+    else:
+        say(f"{args.motion} is on the avatar's own skeleton: played as it is")
     motion, morphs = hands_and_face(avatar, bonemap, plan, motion, take, say)
     if args.vmc is not None:
         from ..avatar.expressions import vrm_expressions

@@ -10,6 +10,7 @@ from ..errors import BadGraphError
 from ..mesh.mesh import Mesh
 from .edges import bridge_edges, connect_components, knn_edges
 from .graph import DeformationGraph
+from .pieces import keep_to_pieces, node_pieces, vertex_pieces
 from .sampling import sample_orientation_aware
 from .weights import skinning_weights
 
@@ -47,12 +48,18 @@ def build_graph(mesh: Mesh, nodes: int | None = 128, radius: float | None = None
     edges = knn_edges(positions, normals, k)
     edges, added = connect_components(positions, edges)
     bridges = bridge_edges(len(positions), edges) | added
+    pieces = node_pieces(mesh.vertices, vertex_pieces(mesh.vertices, mesh.faces), positions)
     graph = DeformationGraph(nodes=positions, normals=normals, edges=edges, bridges=bridges, radius=r,
-                             vertex_nodes=np.empty((0, 4), np.int32), vertex_weights=np.empty((0, 4), np.float32))
+                             vertex_nodes=np.empty((0, 4), np.int32), vertex_weights=np.empty((0, 4), np.float32),
+                             pieces=pieces)
     return with_weights(graph, mesh) if weights else graph
 
 
 def with_weights(graph: DeformationGraph, mesh: Mesh) -> DeformationGraph:
-    """`graph` with the skinning weights of `mesh`'s vertices (Eq. 2) filled in."""
+    """`graph` with the skinning weights of `mesh`'s vertices (Eq. 2) filled in, each vertex's kept to the
+    mesh piece it lies on (`pieces.keep_to_pieces`)."""
     idx, w = skinning_weights(mesh.vertices, mesh.normals, graph.nodes, graph.normals, graph.radius)
+    if graph.pieces is not None and len(graph.pieces) == graph.node_count:
+        idx, w = keep_to_pieces(idx, w, mesh.vertices, vertex_pieces(mesh.vertices, mesh.faces),
+                                graph.nodes, graph.pieces)
     return dataclasses.replace(graph, vertex_nodes=idx, vertex_weights=w)

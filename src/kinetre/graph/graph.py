@@ -27,6 +27,8 @@ class DeformationGraph:
         The 4 nodes that move each mesh vertex (glTF JOINTS_0).
     vertex_weights : (V, 4) float32
         Their weights, each row summing to 1 (glTF WEIGHTS_0).
+    pieces : (N,) int32 or None
+        Per node, the connected piece of the mesh it lies on (`pieces.node_pieces`); None when unknown.
     """
 
     nodes: np.ndarray
@@ -36,6 +38,7 @@ class DeformationGraph:
     radius: float
     vertex_nodes: np.ndarray
     vertex_weights: np.ndarray
+    pieces: np.ndarray | None = None
 
     @property
     def node_count(self) -> int:

@@ -125,7 +125,7 @@ def _extent(values: np.ndarray) -> float:
     return float(hi - lo)
 
 
-def _inside(points: np.ndarray, tree: cKDTree, vertices: np.ndarray, normals: np.ndarray) -> np.ndarray:
+def inside_surface(points: np.ndarray, tree: cKDTree, vertices: np.ndarray, normals: np.ndarray) -> np.ndarray:
     """(N,) bool: each point lies behind the normal of its nearest mesh vertex (inside a closed surface)."""
     _, i = tree.query(points)
     return np.einsum("ni,ni->n", points - vertices[i], normals[i]) < 0
@@ -217,7 +217,7 @@ def fit_shapes(take: Take, mesh: Mesh, bind_frame: int = 0, fit: str = "auto", y
             s = base * m
             t = start(turn, s) + moves[:, :1] * length * ax + moves[:, 1:] * [0.0, height, 0.0]  # (C, 3)
             placed = s * src @ r.T + t[:, None]                                                # (C, N, 3)
-            inside = _inside(placed.reshape(-1, 3), tree, tree.data, normals).reshape(len(t), -1).mean(axis=1)
+            inside = inside_surface(placed.reshape(-1, 3), tree, tree.data, normals).reshape(len(t), -1).mean(axis=1)
             back = ((probe[None] - t[:, None]) @ r) / s                     # the mesh probe in source units
             covered = np.isfinite(src_tree.query(back.reshape(-1, 3), distance_upper_bound=COVER / s)[0])
             ground_back = ((ground[None] - t[:, None] * [1.0, 0.0, 1.0]) @ r) / s
@@ -258,7 +258,7 @@ def fit_shapes(take: Take, mesh: Mesh, bind_frame: int = 0, fit: str = "auto", y
             notes.append("the mesh's front and back look alike to the fit: if the motion runs backwards, "
                          "try --flip")
     _, turn, s, t, (rh, rl), _ = chosen
-    inside = float(_inside(s * src @ yaw_rotation(turn).T + t, tree, tree.data, normals).mean())
+    inside = float(inside_surface(s * src @ yaw_rotation(turn).T + t, tree, tree.data, normals).mean())
     if max(rh, rl) / min(rh, rl) > 2.0:  # proportions twice apart: a fox in a giraffe
         longer = "longer" if rl < rh else "taller"
         notes.append(f"the source is {max(rh, rl) / min(rh, rl):.1f}x {longer} for its size than the mesh: "
@@ -272,5 +272,5 @@ def fit_shapes(take: Take, mesh: Mesh, bind_frame: int = 0, fit: str = "auto", y
         d, _ = cKDTree(np.asarray(nodes) * k).query(joints)
         shrink = float(np.clip(JOINT_REACH / max(float(np.median(d)), 1e-12), 0.3, 1.0))
     k, s, t = k * shrink, s * shrink, t * shrink
-    placement = Placement(k, yaw_rotation(turn), t, 1.0 if fit_mesh else 1.0 / k, skeleton_scale=s)
+    placement = Placement(k, yaw_rotation(turn), t, 1.0 if fit_mesh else 1.0 / k, skeleton_scale=s, method="shapes")
     return ShapeFit(placement, how, float(turn % 360.0), (rh, rl), inside, tuple(notes))

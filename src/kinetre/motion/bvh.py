@@ -256,7 +256,13 @@ def _parse_motion(lines, motion_at, n_channels, source):
 
 
 def forward_kinematics(clip: BvhClip, frames: slice | None = None) -> np.ndarray:
-    """World positions (T, J, 3) float64 of every joint (End Sites included) in file units.
+    """World positions (T, J, 3) float64 of every joint (End Sites included) in file units."""
+    return joint_frames(clip, frames)[0]
+
+
+def joint_frames(clip: BvhClip, frames: slice | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """World positions (T, J, 3) in file units and rotations (T, J, 3, 3) of every joint (End Sites
+    included).
 
     Vectorised over frames: one pass over the joints, each a batch of 3x3 products.
     """
@@ -285,7 +291,7 @@ def forward_kinematics(clip: BvhClip, frames: slice | None = None) -> np.ndarray
         else:
             pos[:, j] = pos[:, parent] + np.einsum("tab,tb->ta", rot[:, parent], local_t)
             rot[:, j] = rot[:, parent] @ local_r
-    return pos
+    return pos, rot
 
 
 def rest_positions(clip: BvhClip) -> np.ndarray:
@@ -385,16 +391,17 @@ def load_bvh(path: str | os.PathLike, scale: float | None = None, as_kinect: boo
     elif not (math.isfinite(scale) and scale > 0):
         raise BadMotionError(f"{path}: scale must be a positive number, got {scale!r}")
     # in chunks of frames: the per-joint world rotations of a long clip would not fit in memory at once
-    positions = np.concatenate([forward_kinematics(clip, slice(i, i + _CHUNK))
-                                for i in range(0, len(clip.motion), _CHUNK)]) * scale
-    rest = rest_positions(clip) * scale
-    hmap = take_map(clip.names, clip.parents, rest) if as_kinect else None
-    if hmap is not None:
-        positions, tracked = kinect_frames(hmap, positions)
-        return Take(KINECT20, positions @ upright(hmap, rest).T, tracked, clip.fps, path)
+    chunks = [joint_frames(clip, slice(i, i + _CHUNK)) for i in range(0, len(clip.motion), _CHUNK)]
+    positions = np.concatenate([c[0] for c in chunks]) * scale
     stem = os.path.basename(path).rsplit(".", 1)[0]
     model = SkeletonModel(f"bvh:{stem}", clip.names, clip.parents)
-    return Take(model, positions, np.ones(positions.shape[:2], dtype=bool), clip.fps, path)
+    own = Take(model, positions, np.ones(positions.shape[:2], dtype=bool), clip.fps, path,
+               bone_frames=carried_by(np.concatenate([c[1] for c in chunks]), clip.parents))
+    rest = rest_positions(clip) * scale
+    hmap = take_map(clip.names, clip.parents, rest) if as_kinect else None
+    if hmap is None:
+        return own
+    return kinect_take(hmap, own, upright(hmap, rest))
 
 
 def upright(hmap, rest: np.ndarray) -> np.ndarray:
@@ -402,3 +409,25 @@ def upright(hmap, rest: np.ndarray) -> np.ndarray:
     kinect, _ = kinect_frames(hmap, rest)
     top = "Head" if "Head" in hmap.joints else "ShoulderCenter"
     return up_rotation(kinect[KINECT20.index(top)] - kinect[KINECT20.index("HipCenter")])
+
+
+def carried_by(rotations: np.ndarray, parents) -> np.ndarray:
+    """(T, J, 3, 3) per joint its parent's world rotation (a root: its own) from every joint's (T, J, 3, 3):
+    the frame of the bone that carries the joint."""
+    p = np.asarray(parents)
+    return rotations[:, np.where(p >= 0, p, np.arange(len(p)))]
+
+
+def kinect_take(hmap, own: Take, turn: np.ndarray, native: Take | None = None) -> Take:
+    """A file's own take as Kinect-20 through `hmap`, turned by `turn` (its up to +Y). A Kinect joint taken
+    from one source joint keeps the bone frame that carries it; a derived or missing one has none (NaN).
+    The own take (or `native`, the file's skeleton as a take drives with it) rides along as `native`."""
+    positions, tracked = kinect_frames(hmap, own.positions[:, :len(hmap.names)])
+    bone_frames = None
+    if own.bone_frames is not None:
+        bone_frames = np.full(positions.shape + (3,), np.nan)
+        for k, name in enumerate(KINECT20.joints):
+            if name in hmap.joints:
+                bone_frames[:, k] = turn @ own.bone_frames[:, hmap.joints[name]]
+    return Take(KINECT20, positions @ turn.T, tracked, own.fps, own.source, bone_frames=bone_frames,
+                native=own if native is None else native)

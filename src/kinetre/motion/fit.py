@@ -40,6 +40,9 @@ class Placement:
     skeleton_scale : float
         The skeleton is scaled by this before the turn: 1 for people (the solve frame is their metres),
         the source-to-mesh size ratio for other skeletons (`align.fit_shapes`).
+    method : str
+        How it was found: "height" (a person fitted by height), "shapes" (`align.fit_shapes`) or "in place"
+        (the source already stood inside the mesh, `in_place.in_place`).
     """
 
     mesh_scale: float
@@ -47,6 +50,7 @@ class Placement:
     translation: np.ndarray
     output_scale: float
     skeleton_scale: float = 1.0
+    method: str = "height"
 
     def skeleton(self, frame: Skeleton) -> Skeleton:
         """A frame in the solve frame."""

@@ -21,10 +21,10 @@ import numpy as np
 
 from ..errors import BadMotionError
 from ..gltf_read import GltfDocument, read_gltf
-from ..rotation import quaternion_matrices, slerp
-from ..skeleton.models import KINECT20, SkeletonModel
-from ..skeleton.humanoid_map import kinect_frames, take_map
-from .bvh import upright
+from ..rotation import quaternion_matrices, rotation_part, slerp
+from ..skeleton.models import SkeletonModel
+from ..skeleton.humanoid_map import take_map
+from .bvh import kinect_take, upright
 from .take import Take
 
 GLTF_EXTS = (".glb", ".gltf")
@@ -236,6 +236,39 @@ def skin_weights(d: GltfDocument) -> dict[int, float]:
     return total
 
 
+def skin_centroids(d: GltfDocument) -> dict[int, np.ndarray]:
+    """Per joint node, the skin-weighted mean of the vertices it moves, in its own bind frame (inverse bind
+    matrix times vertex): where the part it carries lies (empty when no mesh is skinned)."""
+    doc, sums, mass = d.doc, {}, {}
+    for node in doc.nodes:
+        if node.mesh is None or node.skin is None:
+            continue
+        skin = doc.skins[node.skin]
+        joints = skin.joints or []
+        ibm = np.tile(np.eye(4), (len(joints), 1, 1)) if skin.inverseBindMatrices is None else \
+            d.accessor(skin.inverseBindMatrices).reshape(-1, 4, 4).transpose(0, 2, 1)
+        if len(ibm) != len(joints):
+            raise BadMotionError(f"{d.path}: skin {node.skin} has {len(ibm)} inverse bind matrices for "
+                                 f"{len(joints)} joints")
+        for prim in doc.meshes[node.mesh].primitives:
+            attrs = prim.attributes
+            if getattr(attrs, "JOINTS_0", None) is None or getattr(attrs, "WEIGHTS_0", None) is None:
+                continue
+            idx = d.accessor(attrs.JOINTS_0).astype(np.int64)
+            w = d.accessor(attrs.WEIGHTS_0).astype(np.float64)
+            v = d.accessor(attrs.POSITION).astype(np.float64)
+            if idx.shape != w.shape or len(v) != len(idx) or idx.size and (idx.min() < 0 or idx.max() >= len(joints)):
+                raise BadMotionError(f"{d.path}: a skinned primitive's JOINTS_0 does not fit its skin")
+            local = np.einsum("vkab,vb->vka", ibm[idx][..., :3, :3], v) + ibm[idx][..., :3, 3]
+            for k, j in enumerate(joints):
+                hit = idx == k
+                if not (w * hit).sum() > 0:
+                    continue
+                sums[j] = sums.get(j, 0.0) + (w[..., None] * hit[..., None] * local).sum(axis=(0, 1))
+                mass[j] = mass.get(j, 0.0) + float((w * hit).sum())
+    return {j: sums[j] / mass[j] for j in sums}
+
+
 def skeleton_nodes(d: GltfDocument, anim_index: int | None,
                    handles: bool = False) -> tuple[list[int], tuple[int, ...]]:
     """The joint nodes (parents first) and each one's parent joint (nearest joint ancestor, -1 for none).
@@ -280,7 +313,8 @@ def skeleton_nodes(d: GltfDocument, anim_index: int | None,
     return nodes, tuple(parents)
 
 
-def _names(doc, nodes: list[int]) -> tuple[str, ...]:
+def node_names(doc, nodes: list[int]) -> tuple[str, ...]:
+    """The names a take gives glTF joint nodes: the node's name, "node<index>" without one, made unique."""
     names, seen = [], set()
     for j in nodes:
         base = doc.nodes[j].name or f"node{j}"
@@ -295,7 +329,7 @@ def _names(doc, nodes: list[int]) -> tuple[str, ...]:
 def _skeleton(d: GltfDocument, index: int, handles: bool = False):
     nodes, parents = skeleton_nodes(d, index, handles)
     rest = world_matrices(d, None, np.zeros(1))[0, nodes][:, :3, 3]
-    return nodes, _names(d.doc, nodes), parents, rest
+    return nodes, node_names(d.doc, nodes), parents, rest
 
 
 def animation_skeleton(path: str | os.PathLike, animation: str | int | None = None):
@@ -338,13 +372,71 @@ def load_gltf(path: str | os.PathLike, animation: str | int | None = None, fps: 
     t = info.start + np.arange(count) / fps
     world = world_matrices(d, info.index, t)
     source = f"{path}#{info.name}"
+    own = _own_take(d, info.index, world, float(fps), source)
     if as_kinect:
         nodes, names, parents, rest = _skeleton(d, info.index, handles=True)
         hmap = take_map(names, parents, rest)
         if hmap is not None:
-            positions, tracked = kinect_frames(hmap, world[:, nodes][..., :3, 3])
-            return Take(KINECT20, positions @ upright(hmap, rest).T, tracked, float(fps), source)
-    nodes, names, parents, rest = _skeleton(d, info.index)
+            mapped = _own_take(d, info.index, world, float(fps), source, handles=True, tips=False)
+            return kinect_take(hmap, mapped, upright(hmap, rest), native=own)
+    return own
+
+
+def _own_take(d: GltfDocument, index: int, world: np.ndarray, fps: float, source: str, handles: bool = False,
+              tips: bool = True) -> Take:
+    """The file's own skeleton as a take, with its bone frames (and tips)."""
+    nodes, names, parents, _ = _skeleton(d, index, handles)
     positions = world[:, nodes][..., :3, 3]
-    model = SkeletonModel(f"gltf:{Path(path).stem}", names, parents)
-    return Take(model, positions, np.ones(positions.shape[:2], dtype=bool), float(fps), source)
+    # a joint is carried by its parent node's frame (a non-joint node in between included)
+    node_parent = _node_order(d.doc, d.path)[1]
+    carriers = [node_parent.get(j, j) for j in nodes]
+    # a last joint (a head, a hand without fingers) turns the part it carries, which no bone of the
+    # joints shows: a tip joint at that part's skinned centre, carried by the last joint, makes it a bone
+    ends = _tips(d, nodes, parents, names) if tips else []
+    if ends:
+        centres = skin_centroids(d)
+        local = np.array([np.append(centres[nodes[k]], 1.0) for k, _ in ends])
+        tip_world = np.einsum("fkab,kb->fka", world[:, [nodes[k] for k, _ in ends]][..., :3, :], local)
+        positions = np.concatenate([positions, tip_world], axis=1)
+        carriers = carriers + [nodes[k] for k, _ in ends]
+        names, parents = names + tuple(n for _, n in ends), parents + tuple(k for k, _ in ends)
+    model = SkeletonModel(f"gltf:{Path(d.path).stem}", names, parents)
+    return Take(model, positions, np.ones(positions.shape[:2], dtype=bool), fps, source,
+                bone_frames=rotation_part(world[:, carriers][..., :3, :3]))
+
+
+def _tips(d: GltfDocument, nodes: list[int], parents: tuple[int, ...], names: tuple[str, ...]) -> list[tuple[int, str]]:
+    """(joint index, tip name) for every joint without child joints whose skinned part's centre lies off the
+    joint (by more than a tenth of the bone into it)."""
+    centres = skin_centroids(d)
+    has_child = set(parents)
+    taken = set(names)
+    world = world_matrices(d, None, np.zeros(1))[0]
+    out = []
+    for k, j in enumerate(nodes):
+        if k in has_child or j not in centres or parents[k] < 0:
+            continue
+        bone = np.linalg.norm(world[j, :3, 3] - world[nodes[parents[k]], :3, 3])
+        scale = np.linalg.norm(world[j, :3, :3], axis=0).mean()
+        if not np.linalg.norm(centres[j]) * scale > 0.1 * bone:
+            continue
+        name, n = f"{names[k]}.tip", 2
+        while name in taken:
+            name, n = f"{names[k]}.tip{n}", n + 1
+        taken.add(name)
+        out.append((k, name))
+    return out
+
+
+def rotation_part(m: np.ndarray) -> np.ndarray:
+    """(..., 3, 3) the rotation of each (..., 3, 3) linear map (its polar factor: scale and shear removed)."""
+    u, _, vt = np.linalg.svd(m)
+    r = u @ vt
+    flip = np.linalg.det(r) < 0  # a mirroring scale: keep a proper rotation
+    if flip.any():
+        u = u.copy()
+        u[flip, :, 2] *= -1.0
+        r = np.where(flip[..., None, None], u @ vt, r)
+    return r
+
+

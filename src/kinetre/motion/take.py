@@ -40,6 +40,14 @@ class Take:
         (metres, +Y up, the wrist at the body's wrist); NaN where the hand is not found.
     blendshapes : (T, P, B) float64 or None; blendshape_names : tuple of B str
         Face blendshape weights in [0, 1] (MediaPipe's ARKit-named set); NaN where the face is not found.
+    bone_frames : (T, J, 3, 3) float64 or None
+        Per joint, the world rotation of the bone that carries it (its parent joint's frame, twist included)
+        where the source has joint rotations (BVH, glTF); NaN where a joint has none; None for
+        position-only sources (a camera).
+    native : Take or None
+        A take mapped to Kinect-20 from a file's own skeleton: that skeleton as the file has it (its joints,
+        units and frame, before the mapping's turn), so a source that already lies inside a mesh can drive
+        it with all its bones where it stands.
 
     Examples
     --------
@@ -60,6 +68,8 @@ class Take:
     hands: np.ndarray | None = None
     blendshapes: np.ndarray | None = None
     blendshape_names: tuple[str, ...] = ()
+    bone_frames: np.ndarray | None = None
+    native: "Take | None" = None
 
     def __post_init__(self):
         pos = np.asarray(self.positions, dtype=np.float64)
@@ -78,6 +88,13 @@ class Take:
         object.__setattr__(self, "tracked", tracked & np.isfinite(pos).all(axis=2))
         object.__setattr__(self, "fps", float(self.fps))
         self._check_people(where, pos.shape[0], j)
+        if self.bone_frames is not None:
+            rot = np.asarray(self.bone_frames, dtype=np.float64)
+            if rot.shape != pos.shape + (3,):
+                raise BadMotionError(f"{where}: bone_frames must be {pos.shape + (3,)}, got {rot.shape}")
+            object.__setattr__(self, "bone_frames", rot)
+        if self.native is not None and len(self.native) != pos.shape[0]:
+            raise BadMotionError(f"{where}: the native take has {len(self.native)} frames, not {pos.shape[0]}")
 
     def _check_people(self, where: str, t: int, j: int) -> None:
         p = len(self.people)
@@ -103,11 +120,15 @@ class Take:
             object.__setattr__(self, "crowd_tracked",
                                self.crowd_tracked & np.isfinite(self.crowd_positions).all(axis=3))
 
-    def _extras(self, s=slice(None), points=None) -> dict:
-        """The people fields, frames `s`, with `points` applied to every position array."""
+    def _extras(self, s=slice(None), points=None, turn=None) -> dict:
+        """The people fields and bone frames, frames `s`, with `points` applied to every position array and
+        `turn` (a rotation) to the bone frames."""
         move = points or (lambda x: x)
         pick = lambda x: None if x is None else x[s]  # noqa: E731
-        return {"people": self.people,
+        rot = None if self.bone_frames is None else self.bone_frames[s]
+        if rot is not None and turn is not None:
+            rot = turn @ rot
+        return {"bone_frames": rot, "people": self.people,
                 "crowd_positions": None if self.crowd_positions is None else move(self.crowd_positions[s]),
                 "crowd_tracked": pick(self.crowd_tracked),
                 "hands": None if self.hands is None else move(self.hands[s]),
@@ -176,7 +197,8 @@ class Take:
         n = len(self)
         if not -n <= i < n:
             raise BadMotionError(f"{self.source or 'take'}: frame {i} out of range (the take has {n} frames)")
-        return Skeleton(self.model, self.positions[i], self.tracked[i])
+        return Skeleton(self.model, self.positions[i], self.tracked[i],
+                        None if self.bone_frames is None else self.bone_frames[i])
 
     def frames(self) -> list[Skeleton]:
         return [self.frame(i) for i in range(len(self))]
@@ -188,7 +210,7 @@ class Take:
             raise BadMotionError(f"{self.source or 'take'}: frames {start}:{stop} select nothing "
                                  f"(the take has {len(self)} frames)")
         return Take(self.model, self.positions[s], self.tracked[s], self.fps / step, self.source,
-                    **self._extras(s))
+                    native=None if self.native is None else self.native.slice(start, stop, step), **self._extras(s))
 
     def transformed(self, scale: float = 1.0, rotation=None, translation=(0.0, 0.0, 0.0)) -> "Take":
         """Every frame under x -> scale * rotation @ x + translation."""
@@ -196,7 +218,8 @@ class Take:
         t = np.asarray(translation, dtype=np.float64)
         move = lambda x: scale * x @ r.T + t  # noqa: E731
         return Take(self.model, move(self.positions), self.tracked, self.fps, self.source,
-                    **self._extras(points=move))
+                    native=None if self.native is None else self.native.transformed(scale, r, t),
+                    **self._extras(points=move, turn=r))
 
     @staticmethod
     def from_frames(frames: list[Skeleton], fps: float, source: str = "") -> "Take":
@@ -206,8 +229,9 @@ class Take:
         model = frames[0].model
         if any(f.model != model for f in frames):
             raise BadMotionError(f"{source or 'take'}: frames mix skeleton models")
+        framed = all(f.bone_frames is not None for f in frames)
         return Take(model, np.stack([f.positions for f in frames]), np.stack([f.tracked for f in frames]),
-                    fps, source)
+                    fps, source, bone_frames=np.stack([f.bone_frames for f in frames]) if framed else None)
 
 
 @dataclass(frozen=True, eq=False)

@@ -109,8 +109,12 @@ def _carry(nodes: np.ndarray, candidates: np.ndarray, point: np.ndarray, neighbo
 
 
 def attach_skeleton(graph: DeformationGraph, skeleton: Skeleton, joint_mask: np.ndarray,
-                    reach: float = 0.10, bone_radius: float = 0.04) -> SkeletonAttachment:
+                    reach: float = 0.10, bone_radius: float = 0.04, node_bones: bool = False) -> SkeletonAttachment:
     """Point constraints for one skeleton at its bind pose (the pose at "possess").
+
+    With `node_bones` every graph node also follows its nearest bone (ours, for a skeleton that stands
+    where the mesh's artist put it): a constraint at the node itself, moved as a bone sample, so parts
+    beyond the bone cylinders' reach (a big head, a broad torso) are carried by their bone too.
 
     Parameters
     ----------
@@ -119,6 +123,7 @@ def attach_skeleton(graph: DeformationGraph, skeleton: Skeleton, joint_mask: np.
     joint_mask : (J,) bool, the subset that may attach; a bone needs both of its joints
     reach : float, attachment distance (10 cm)
     bone_radius : float, bone cylinder radius (4 cm)
+    node_bones : bool, carry every node by its nearest bone as well
     """
     nodes, normals = graph.nodes, graph.normals
     tree = cKDTree(nodes)
@@ -149,12 +154,38 @@ def attach_skeleton(graph: DeformationGraph, skeleton: Skeleton, joint_mask: np.
             i, w = _carry(nodes, near, q, neighbours)
             points.append(q), idx.append(i), wts.append(w)
             joint_of.append(-1), bone_of.append(bi), offsets.append(q - pos[p])
+    if node_bones:
+        # a joint outside the graph's box (a rig's helper, an IK pole target) carries none of the mesh
+        lo, hi = nodes.min(axis=0) - reach, nodes.max(axis=0) + reach
+        within = use & ((pos >= lo) & (pos <= hi)).all(axis=1)
+        for j, bi in enumerate(nearest_bones(nodes, skeleton, within)):
+            if bi < 0:
+                continue
+            points.append(nodes[j]), idx.append(np.full(4, j, np.int32)), wts.append(np.array([1.0, 0, 0, 0]))
+            joint_of.append(-1), bone_of.append(bi), offsets.append(nodes[j] - pos[skeleton.model.bones[bi][0]])
     if points:
         cons = PointConstraints(np.array(points), np.array(idx, dtype=np.int32), np.array(wts))
     else:
         cons = PointConstraints.empty()
     return SkeletonAttachment(cons, np.array(joint_of, dtype=np.int32), np.array(bone_of, dtype=np.int32),
                               np.array(offsets).reshape(-1, 3), skeleton, twist_references(skeleton))
+
+
+def nearest_bones(points: np.ndarray, skeleton: Skeleton, joint_mask: np.ndarray) -> np.ndarray:
+    """(P,) int: per point the row in model.bones of the nearest bone (as a segment) whose joints are both in
+    `joint_mask`, or -1 when there is none."""
+    bones = np.asarray(skeleton.model.bones, dtype=np.int64).reshape(-1, 2)
+    pos = skeleton.positions
+    ok = joint_mask[bones[:, 0]] & joint_mask[bones[:, 1]]
+    ok &= np.linalg.norm(pos[bones[:, 1]] - pos[bones[:, 0]], axis=1) > 1e-9
+    if not ok.any():
+        return np.full(len(points), -1)
+    rows = np.flatnonzero(ok)
+    a, b = pos[bones[rows, 0]], pos[bones[rows, 1]]
+    ab = b - a
+    s = np.einsum("pbi,bi->pb", points[:, None] - a[None], ab) / np.einsum("bi,bi->b", ab, ab)
+    closest = a[None] + np.clip(s, 0.0, 1.0)[..., None] * ab[None]
+    return rows[np.argmin(np.linalg.norm(points[:, None] - closest, axis=2), axis=1)]
 
 
 def twist_references(skeleton: Skeleton, min_sine: float = 0.2) -> np.ndarray:
@@ -296,6 +327,50 @@ def minimal_rotation(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return out.reshape(a.shape[:-1] + (3, 3))
 
 
+def framed_rotations(bind: Skeleton, frame: Skeleton, rotations: np.ndarray) -> np.ndarray:
+    """`rotations` (B, 3, 3), with every bone whose child joint has a source bone frame at bind and now
+    (`Skeleton.bone_frames`) turned instead by the source's own rotation, twist included: F_now F_bindᵀ,
+    aligned by the minimal rotation with the bone's tracked direction (a mapped bone may span several
+    source bones)."""
+    bones, _ = _bone_arrays(frame.model)
+    out = np.array(rotations, dtype=np.float64)
+    if bind.bone_frames is None or frame.bone_frames is None:
+        return out
+    _framed_rotations_into(np.asarray(bind.positions, np.float64), np.asarray(frame.positions, np.float64),
+                           np.asarray(frame.tracked, np.bool_), bones, bind.bone_frames, frame.bone_frames, out)
+    return out
+
+
+@njit(cache=True)
+def _framed_rotations_into(bind, pos, tracked, bones, bind_frames, frames, rot):
+    u0 = np.empty(3)
+    u1 = np.empty(3)
+    turned = np.empty(3)
+    m = np.empty((3, 3))
+    r = np.empty((3, 3))
+    for b in range(bones.shape[0]):
+        p, c = bones[b, 0], bones[b, 1]
+        if not (np.isfinite(bind_frames[c, 0, 0]) and np.isfinite(frames[c, 0, 0])):
+            continue
+        for i in range(3):
+            for j in range(3):
+                r[i, j] = frames[c, i, 0] * bind_frames[c, j, 0] + frames[c, i, 1] * bind_frames[c, j, 1] \
+                    + frames[c, i, 2] * bind_frames[c, j, 2]
+        if not np.isfinite(r).all():
+            continue
+        ok0 = _unit_into(bind[c, 0] - bind[p, 0], bind[c, 1] - bind[p, 1], bind[c, 2] - bind[p, 2], u0)
+        ok1 = _unit_into(pos[c, 0] - pos[p, 0], pos[c, 1] - pos[p, 1], pos[c, 2] - pos[p, 2], u1)
+        if ok0 and ok1 and tracked[p] and tracked[c]:
+            for i in range(3):
+                turned[i] = r[i, 0] * u0[0] + r[i, 1] * u0[1] + r[i, 2] * u0[2]
+            _minimal_rotation_into(turned, u1, m)
+            for i in range(3):
+                for j in range(3):
+                    rot[b, i, j] = m[i, 0] * r[0, j] + m[i, 1] * r[1, j] + m[i, 2] * r[2, j]
+        else:
+            rot[b] = r
+
+
 @njit(cache=True)
 def _minimal_rotation_into(a, b, out):
     """`minimal_rotation` for one pair of unit vectors into out (3, 3) (scalar arithmetic: per frame it runs
@@ -339,6 +414,7 @@ class StackedAttachments:
     first_joint : (S + 1,) int64, skeleton s's joints are rows first_joint[s]:first_joint[s + 1]
     bind : (J, 3) the bind poses' joints; bones (B, 2), parent_bone (B,), twist_reference (B,) int64
     joint, bone : (L,) int64 per constraint its joint or bone row (-1: none); offset, points (L, 3)
+    bind_frames : (J, 3, 3) the bind poses' source bone frames (NaN where a bind pose has none)
     """
 
     first_joint: np.ndarray
@@ -350,14 +426,23 @@ class StackedAttachments:
     bone: np.ndarray
     offset: np.ndarray
     points: np.ndarray
+    bind_frames: np.ndarray
+
+    @property
+    def framed(self) -> bool:
+        """Whether any bind pose carries source bone frames (then frames' bone frames turn its bones)."""
+        return bool(np.isfinite(self.bind_frames[:, 0, 0]).any())
 
     @staticmethod
     def of(attachments) -> "StackedAttachments":
         joints = bones = 0
         first, binds, bone_rows, parents, refs, joint, bone, offset, points = [0], [], [], [], [], [], [], [], []
+        frames = []
         for att in attachments:
             model_bones, parent_bones = _bone_arrays(att.bind.model)
             binds.append(np.asarray(att.bind.positions, np.float64))
+            frames.append(np.full((len(att.bind.model.joints), 3, 3), np.nan) if att.bind.bone_frames is None
+                          else att.bind.bone_frames)
             bone_rows.append(model_bones + joints)
             parents.append(np.where(parent_bones >= 0, parent_bones + bones, -1))
             refs.append(np.where(att.twist_reference >= 0, att.twist_reference.astype(np.int64) + bones, -1))
@@ -374,15 +459,20 @@ class StackedAttachments:
         return StackedAttachments(np.array(first, np.int64), stack(binds, np.float64, (0, 3)),
                                   stack(bone_rows, np.int64, (0, 2)), stack(parents, np.int64, 0),
                                   stack(refs, np.int64, 0), stack(joint, np.int64, 0), stack(bone, np.int64, 0),
-                                  stack(offset, np.float64, (0, 3)), stack(points, np.float64, (0, 3)))
+                                  stack(offset, np.float64, (0, 3)), stack(points, np.float64, (0, 3)),
+                                  stack(frames, np.float64, (0, 3, 3)))
 
 
 @njit(cache=True)
-def stacked_targets(bind, bones, parent_bone, twist_reference, joint, bone, offset, points, pos, tracked, q, active):
+def stacked_targets(bind, bones, parent_bone, twist_reference, joint, bone, offset, points, pos, tracked, q, active,
+                    bind_frames, frames):
     """`constraint_targets` of every skeleton at once on `StackedAttachments`' arrays and the frames' joints
-    stacked the same way (pos (J, 3), tracked (J,)): targets into q (L, 3), 1.0 / 0.0 per tracked / lost
-    constraint into `active` (L,) (the solver's scales). Returns the number of tracked constraints."""
+    stacked the same way (pos (J, 3), tracked (J,), bone frames (J, 3, 3) or a (0, 3, 3) array for none):
+    targets into q (L, 3), 1.0 / 0.0 per tracked / lost constraint into `active` (L,) (the solver's scales).
+    Returns the number of tracked constraints."""
     rot = _bone_rotations(bind, pos, tracked, bones, twist_reference, parent_bone)
+    if frames.shape[0] == bind_frames.shape[0] and frames.shape[0] > 0:
+        _framed_rotations_into(bind, pos, tracked, bones, bind_frames, frames, rot)
     ok = _targets(joint, bone, offset, points, bind, pos, tracked, bones, rot, q)
     count = 0
     for i in range(ok.shape[0]):
@@ -394,14 +484,17 @@ def stacked_targets(bind, bones, parent_bone, twist_reference, joint, bone, offs
 def constraint_targets(att: SkeletonAttachment, frame: Skeleton) -> tuple[np.ndarray, np.ndarray]:
     """Targets q_ℓ (L, 3) for a new frame and the (L,) mask of constraints still tracked.
 
-    Joints follow their joint. A bone sample turns with its bone (the minimal rotation from the
-    bind direction to the current one, with the twist taken from a neighbouring bone where there
-    is one), moves with the parent joint, and slides along the bone with
-    its length (ours: so samples near the child joint stay with it when tracked lengths vary).
+    Joints follow their joint. A bone sample turns with its bone: by the source's own bone rotation
+    where the source carries joint rotations (`framed_rotations`: the twist is the source's), else by the
+    minimal rotation from the bind direction to the current one, with the twist taken from a neighbouring
+    bone where there is one. It moves with the parent joint, and slides along the bone with its length
+    (ours: so samples near the child joint stay with it when tracked lengths vary).
     """
     pos = np.asarray(frame.positions, dtype=np.float64)
     tracked = np.asarray(frame.tracked, dtype=np.bool_)
-    rot = bone_rotations(att.bind, frame, att.twist_reference) if (att.bone >= 0).any() else np.zeros((0, 3, 3))
+    rot = np.zeros((0, 3, 3))
+    if (att.bone >= 0).any():
+        rot = framed_rotations(att.bind, frame, bone_rotations(att.bind, frame, att.twist_reference))
     q = np.zeros((len(att.joint), 3))
     ok = _targets(att.joint, att.bone, att.offset, att.constraints.points, np.asarray(att.bind.positions, np.float64),
                   pos, tracked, _bone_arrays(frame.model)[0], rot, q)

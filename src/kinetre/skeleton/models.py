@@ -89,11 +89,16 @@ class Skeleton:
         Joint positions; rows of untracked joints may hold anything (NaN included).
     tracked : (J,) bool
         False where the tracker lost the joint; a non-finite position counts as untracked too.
+    bone_frames : (J, 3, 3) float64 or None
+        Per joint, the world rotation of the bone that carries it (its parent joint's frame: the source's own
+        rotation, twist included) where the source has joint rotations (BVH, glTF); NaN for joints without
+        one; None for position-only sources (a camera).
     """
 
     model: SkeletonModel
     positions: np.ndarray
     tracked: np.ndarray
+    bone_frames: np.ndarray | None = None
 
     def __post_init__(self):
         pos = np.asarray(self.positions, dtype=np.float64)
@@ -107,6 +112,12 @@ class Skeleton:
         tracked = tracked & np.isfinite(pos).all(axis=1)
         object.__setattr__(self, "positions", pos)
         object.__setattr__(self, "tracked", tracked)
+        if self.bone_frames is not None:
+            rot = np.asarray(self.bone_frames, dtype=np.float64)
+            if rot.shape != (j, 3, 3):
+                raise BadSkeletonError(
+                    f"skeleton {self.model.name!r}: bone_frames must be ({j}, 3, 3), got {rot.shape}")
+            object.__setattr__(self, "bone_frames", rot)
 
     @staticmethod
     def from_positions(model: SkeletonModel, positions) -> "Skeleton":
@@ -118,7 +129,7 @@ class Skeleton:
         """The same frame under x -> scale * rotation @ x + translation."""
         r = np.eye(3) if rotation is None else np.asarray(rotation, dtype=np.float64)
         return Skeleton(self.model, scale * self.positions @ r.T + np.asarray(translation, dtype=np.float64),
-                        self.tracked)
+                        self.tracked, None if self.bone_frames is None else r @ self.bone_frames)
 
     @property
     def height(self) -> float:

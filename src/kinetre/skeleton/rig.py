@@ -15,7 +15,11 @@ from ..errors import AttachError, BadSkeletonError
 from ..graph.graph import DeformationGraph
 from .attach import SkeletonAttachment, StackedAttachments, attach_skeleton, stacked_targets
 from .models import Skeleton
+from .rigid_pieces import hold_rigid, rigid_pieces
 from .subsets import subset_mask
+
+
+_NO_FRAMES = np.zeros((0, 3, 3))  # frames without source bone frames: bones turn by their directions
 
 
 def _as_list(skeletons) -> list[Skeleton]:
@@ -38,11 +42,13 @@ class Rig:
     graph : DeformationGraph
     attachments : tuple of SkeletonAttachment, one per skeleton
     last_report : SolveReport or None, the most recent solve's details
+    rigid_pieces : tuple of RigidPiece, the mesh pieces that follow one bone rigidly (with `rigid`; else
+        none: every node is the solve's)
     """
 
     def __init__(self, graph: DeformationGraph, attachments: Sequence[SkeletonAttachment],
                  weights: EnergyWeights = EnergyWeights(), settings: SolverSettings = SolverSettings(),
-                 backend: str | None = None):
+                 backend: str | None = None, rigid: bool = False):
         self.graph = graph
         self.attachments = tuple(attachments)
         self.weights = weights
@@ -58,6 +64,7 @@ class Rig:
         self._x = np.zeros((graph.node_count, 12))
         self._x[:, [0, 4, 8]] = 1.0
         self._x_before: np.ndarray | None = None  # the pose one solve earlier, for a constant-velocity guess
+        self.rigid_pieces = rigid_pieces(graph.pieces, self.attachments) if rigid else ()
         self.last_report: SolveReport | None = None
 
     @property
@@ -110,8 +117,12 @@ class Rig:
             positions = np.concatenate([f.positions for f in frames])
             tracked = np.concatenate([f.tracked for f in frames])
         st = self._stacked
+        bone_frames = _NO_FRAMES
+        if st.framed and any(f.bone_frames is not None for f in frames):
+            bone_frames = np.concatenate([np.full((len(f.model.joints), 3, 3), np.nan) if f.bone_frames is None
+                                          else f.bone_frames for f in frames])
         count = stacked_targets(st.bind, st.bones, st.parent_bone, st.twist_reference, st.joint, st.bone, st.offset,
-                                st.points, positions, tracked, self._q, self._active)
+                                st.points, positions, tracked, self._q, self._active, st.bind_frames, bone_frames)
         return self._q, self._active, count
 
     def solve(self, skeletons, stop=None) -> GraphPose:
@@ -129,13 +140,16 @@ class Rig:
         self.last_report = report
         if not all_finite(report.x):
             return self._pose_of(self._x, float("nan"), 0)
-        self._x_before, self._x = self._x, report.x
+        x = report.x
+        if self.rigid_pieces:
+            x = hold_rigid(x, self.graph.nodes, self.rigid_pieces, self.attachments, _as_list(skeletons))
+        self._x_before, self._x = self._x, x
         return self._pose_of(self._x, report.energy, report.iterations)
 
 
 def attach(graph: DeformationGraph, skeletons, subset=None, reach: float = 0.10, bone_radius: float = 0.04,
            weights: EnergyWeights = EnergyWeights(), settings: SolverSettings = SolverSettings(),
-           backend: str | None = None) -> Rig:
+           backend: str | None = None, node_bones: bool = False, rigid: bool = False) -> Rig:
     """Possess the graph with one or more skeletons in their current (bind) pose.
 
     Parameters
@@ -145,6 +159,10 @@ def attach(graph: DeformationGraph, skeletons, subset=None, reach: float = 0.10,
     subset : joint subset for every skeleton ("left arm", ["HipCenter", "right arm"], None = whole
         body), or a list with one subset per skeleton
     reach : attachment distance, 10 cm; bone_radius : bone cylinder radius, 4 cm
+    node_bones : every graph node also follows its nearest bone (a skeleton that stands where the mesh's
+        artist put it: `attach_skeleton`)
+    rigid : a separate piece of the mesh whose bone samples come from one bone follows that bone rigidly
+        (`rigid_pieces`)
 
     Raises
     ------
@@ -160,7 +178,7 @@ def attach(graph: DeformationGraph, skeletons, subset=None, reach: float = 0.10,
         subsets = subset
     else:
         subsets = [subset] * len(frames)
-    atts = [attach_skeleton(graph, f, subset_mask(f.model, s), reach, bone_radius)
+    atts = [attach_skeleton(graph, f, subset_mask(f.model, s), reach, bone_radius, node_bones)
             for f, s in zip(frames, subsets)]
     if sum(len(a.constraints) for a in atts) == 0:
         tracked = np.concatenate([f.positions[f.tracked] for f in frames])
@@ -171,4 +189,4 @@ def attach(graph: DeformationGraph, skeletons, subset=None, reach: float = 0.10,
         raise AttachError(
             f"cannot possess: no joint or bone is within {reach * 100:.0f} cm of the mesh (nearest joint "
             f"is {d.min():.2f} m away); step into the mesh, move it, or scale it to your height")
-    return Rig(graph, atts, weights, settings, backend)
+    return Rig(graph, atts, weights, settings, backend, rigid)
