@@ -426,17 +426,3 @@ def _tips(d: GltfDocument, nodes: list[int], parents: tuple[int, ...], names: tu
         taken.add(name)
         out.append((k, name))
     return out
-
-
-def rotation_part(m: np.ndarray) -> np.ndarray:
-    """(..., 3, 3) the rotation of each (..., 3, 3) linear map (its polar factor: scale and shear removed)."""
-    u, _, vt = np.linalg.svd(m)
-    r = u @ vt
-    flip = np.linalg.det(r) < 0  # a mirroring scale: keep a proper rotation
-    if flip.any():
-        u = u.copy()
-        u[flip, :, 2] *= -1.0
-        r = np.where(flip[..., None, None], u @ vt, r)
-    return r
-
-
