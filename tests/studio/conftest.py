@@ -59,7 +59,10 @@ def studio():
 
 @pytest.fixture(scope="session")
 def walk(data_dir):
-    """The CMU walk as Kinect-20 skeletons (metres, +Y up), 30 fps."""
+    """The CMU walk as Kinect-20 skeletons (metres, +Y up), 30 fps, as a capture client sends them: joint
+    positions only (the wire carries no bone frames, so an in-process reference must not use them either)."""
+    from dataclasses import replace
+
     from kinetre.motion.bvh import load_bvh
     take = load_bvh(data_dir / "bvh" / "cmu_12_01_walk.bvh")
-    return [take.frame(i) for i in range(0, len(take), 4)]
+    return [replace(take.frame(i), bone_frames=None) for i in range(0, len(take), 4)]
