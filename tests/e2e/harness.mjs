@@ -24,3 +24,18 @@ export async function report(result, scenario, { t0 = null, out = null, cleanup 
   if (out) writeFileSync(out, text);
   process.stdout.write(text + '\n');
 }
+
+/** Debian's Chromium, headless, with `video` (a .y4m file) as its camera and `audio` (a WAV) as its
+ * microphone, both looped. Chromium refuses fake-capture paths that contain "..": give absolute ones. */
+export function launchWithCamera(video, audio = null) {
+  const args = [
+    '--headless', '--no-sandbox', '--disable-gpu', '--disable-quic', '--no-first-run',
+    '--disable-background-networking', '--disable-component-update', '--disable-sync',
+    '--disable-background-timer-throttling', '--disable-renderer-backgrounding',
+    '--disable-backgrounding-occluded-windows', '--autoplay-policy=no-user-gesture-required',
+    '--use-fake-ui-for-media-stream', '--use-fake-device-for-media-stream',
+  ];
+  if (video) args.push(`--use-file-for-fake-video-capture=${video}`);
+  if (audio) args.push(`--use-file-for-fake-audio-capture=${audio}`);
+  return chromium.launch({ executablePath: '/usr/bin/chromium', headless: true, args });
+}

@@ -34,13 +34,14 @@ from starlette.staticfiles import StaticFiles
 from starlette.websockets import WebSocket
 
 from ..errors import KinetreError
+from ..mesh.load import load_mesh
 from .access import TokenGate, check_bind
 from .avatars import Shelf, avatar_routes
 from .channels import Hub
 from .face_routes import face_routes
 from .fanout import Framing, RawSockets
 from .host import LocalScene, SceneHost
-from .meshes import NODES, data_path, prepare_mesh
+from .meshes import NODES, data_path, prepare_upright
 from .natsbus import NatsChannels, probe_nats
 from .player import sample_player
 from .routes import api_routes
@@ -77,10 +78,12 @@ def create_app(mesh_path: str | None = None, nodes: int = NODES, sample_motion: 
         host = GatewayScene(hub)
     else:
         path = mesh_path or str(data_path("spot.obj"))
-        mesh, graph = prepare_mesh(path, nodes)
-        scene = Scene(hub, mesh, graph, Path(path).name, solver=SolveWorker())  # the solve never holds the server
+        raw = load_mesh(path)
+        mesh, graph, upright = prepare_upright(raw, path, nodes)
+        scene = Scene(hub, mesh, graph, Path(path).name, solver=SolveWorker(),  # the solve never holds the server
+                      upright=upright)
         player = sample_player(hub) if sample_motion and mesh_path is None else None
-        host = LocalScene(hub, scene, player, nodes=nodes)
+        host = LocalScene(hub, scene, player, nodes=nodes, source=(raw, Path(path).name))
     shelf = Shelf()
     viewers: dict[str, Viewer] = {}
     names = itertools.count(1)

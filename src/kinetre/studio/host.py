@@ -10,14 +10,15 @@ from __future__ import annotations
 
 import asyncio
 import json
+import threading
 from typing import Protocol
 
 from ..errors import KinetreError
 from .channels import Channels, Frame, now_ms
 from .jobs import Job, Jobs, prepare_upload
-from .meshes import NODES, mesh_payload
+from .meshes import NODES, mesh_payload, prepare_upright
 from .player import SAMPLE_CLIENT, MotionPlayer
-from .protocol import ProtocolError
+from .protocol import ProtocolError, is_person_of, parse_person, person_client
 from .recording import Takes, record_take
 from .scene import Scene, check_subset
 from .subjects import client_subject
@@ -49,6 +50,10 @@ class SceneHost(Protocol):
         """The mesh payload (JSON bytes) if `mesh_id` is the loaded mesh."""
 
     def start_job(self, name: str, data: bytes, scan_options: dict | None = None) -> Job: ...
+
+    def set_up(self, up: str) -> Job:
+        """Stand the current mesh with its stored axis `up` ("y" or "z") as +Y (the page's override of the
+        up axis found on load): a job like an upload; KinetreError where that cannot be done."""
 
     def start_recording(self) -> None: ...
 
@@ -88,8 +93,9 @@ class LocalScene:
     """A `Scene` in this process, with the sample motion, upload jobs and takes around it."""
 
     def __init__(self, hub: Channels, scene: Scene, player: MotionPlayer | None = None, nodes: int = NODES,
-                 settle: float = 0.0):
+                 settle: float = 0.0, source: tuple | None = None):
         self.hub, self.scene, self.player, self.nodes = hub, scene, player, nodes
+        self.source = source  # (the mesh as loaded, its name): stood on another axis by `set_up`
         self.settle = settle  # s for the bus to carry the sample's subscription before it plays
         self.jobs = Jobs()
         self.takes = Takes()
@@ -115,6 +121,7 @@ class LocalScene:
     # --- what people do --------------------------------------------------------------------------------
     async def command(self, client: str, msg: dict, raw: bytes) -> None:
         kind, scene = msg["type"], self.scene
+        client = person_client(client, parse_person(msg))  # one of several people in the page's camera
         if kind == "possess":
             if self.player is not None and client != SAMPLE_CLIENT:
                 await self.stop_sample()  # a live user takes over from the sample motion
@@ -136,7 +143,8 @@ class LocalScene:
             raise ProtocolError(f"unknown message type {kind!r}")
 
     def forget(self, client: str) -> None:
-        self.scene.forget(client)
+        for user in [u for u in self.scene.users if u == client or is_person_of(u, client)]:
+            self.scene.forget(user)
 
     def set_joint_map(self, joint_map) -> dict | None:
         self.scene.joint_map = joint_map
@@ -167,12 +175,40 @@ class LocalScene:
         """Prepare an uploaded mesh in a worker thread; it replaces the scene's mesh when ready."""
         job = self.jobs.new(name)
 
-        def ready(mesh, graph, mesh_name: str) -> None:
+        def ready(mesh, graph, mesh_name: str, upright, raw) -> None:
             if self.player is not None:
                 self.player.playing = False
-            self.scene.set_mesh(mesh, graph, mesh_name)
+            self.source = (raw, mesh_name)
+            self.scene.set_mesh(mesh, graph, mesh_name, upright)
 
         prepare_upload(job, data, self.nodes, asyncio.get_running_loop(), ready, scan_options)
+        return job
+
+    def set_up(self, up: str) -> Job:
+        if up not in ("y", "z"):
+            raise KinetreError(f"up must be 'y' or 'z', got {up!r}")
+        if self.source is None:
+            raise KinetreError("the mesh as loaded is not kept here: load it again to stand it on another axis")
+        raw, name = self.source
+        job = self.jobs.new(name)
+        loop = asyncio.get_running_loop()
+
+        def work() -> None:
+            try:
+                mesh, graph, upright = prepare_upright(raw, name, self.nodes, up=up)
+            except Exception as exc:  # a bug must still reach the page as a message, not a dead job
+                job.failed(f"{name}: could not stand the mesh up ({type(exc).__name__}: {exc})")
+                return
+
+            def swap() -> None:
+                if self.player is not None:
+                    self.player.playing = False
+                self.scene.set_mesh(mesh, graph, name, upright)
+                job.stage, job.fraction, job.done = "ready", 1.0, True
+
+            loop.call_soon_threadsafe(swap)
+
+        threading.Thread(target=work, daemon=True).start()
         return job
 
     # --- takes -----------------------------------------------------------------------------------------

@@ -17,7 +17,8 @@ from pathlib import Path
 from typing import Callable
 
 from ..errors import KinetreError
-from .meshes import prepare_mesh
+from ..mesh.load import load_mesh
+from .meshes import prepare_upright
 
 MAX_UPLOAD = 200 * 1024 * 1024
 
@@ -55,8 +56,9 @@ class Jobs:
 
 
 def prepare_upload(job: Job, data: bytes, nodes: int, loop: asyncio.AbstractEventLoop,
-                   ready: Callable[[object, object, str], None], scan_options: dict | None = None) -> None:
-    """Prepare the uploaded bytes in a worker thread; `ready(mesh, graph, name)` then runs in `loop`."""
+                   ready: Callable[..., None], scan_options: dict | None = None) -> None:
+    """Prepare the uploaded bytes in a worker thread; `ready(mesh, graph, name, upright, raw)` then runs in
+    `loop` (`raw`: the mesh as loaded, before it was stood upright)."""
     folder = Path(tempfile.mkdtemp(prefix="kinetre-upload-"))
     path = folder / (Path(job.name).name or "mesh")
     path.write_bytes(data)
@@ -72,7 +74,9 @@ def prepare_upload(job: Job, data: bytes, nodes: int, loop: asyncio.AbstractEven
                 progress("scanning RGB-D frames", 0.05)
                 result = scan_zip(path, folder / (path.stem + ".ply"), **(scan_options or {}))
                 mesh_path = Path(result.mesh_path)
-            mesh, graph = prepare_mesh(str(mesh_path), nodes, progress=progress)
+            progress("reading", 0.05)
+            raw = load_mesh(str(mesh_path))
+            mesh, graph, upright = prepare_upright(raw, str(mesh_path), nodes, progress=progress)
         except KinetreError as exc:
             job.failed(str(exc).replace(str(folder) + os.sep, ""))
             return
@@ -83,7 +87,7 @@ def prepare_upload(job: Job, data: bytes, nodes: int, loop: asyncio.AbstractEven
             shutil.rmtree(folder, ignore_errors=True)
 
         def swap() -> None:
-            ready(mesh, graph, mesh_path.name if mesh_path != path else Path(job.name).name)
+            ready(mesh, graph, mesh_path.name if mesh_path != path else Path(job.name).name, upright, raw)
             job.done = True
 
         loop.call_soon_threadsafe(swap)

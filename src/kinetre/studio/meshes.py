@@ -10,6 +10,7 @@ import numpy as np
 from ..graph.build import build_graph
 from ..mesh.load import load_mesh
 from ..mesh.mesh import Mesh
+from ..mesh.upright import Upright, find_upright, turned
 from ..physics.spheres import studio_packing
 from .placement import standing_mesh
 
@@ -22,15 +23,24 @@ def data_path(name: str) -> Path:
 
 
 def prepare_mesh(path: str, nodes: int = NODES, progress=lambda stage, fraction: None):
-    """Load, stand in metres and build the graph: (Mesh, DeformationGraph). Raises KinetreError."""
+    """Load, stand upright in metres and build the graph: (Mesh, DeformationGraph). Raises KinetreError."""
     progress("reading", 0.05)
-    mesh = standing_mesh(load_mesh(path))
+    mesh, graph, _ = prepare_upright(load_mesh(path), path, nodes, progress)
+    return mesh, graph
+
+
+def prepare_upright(raw: Mesh, path: str, nodes: int = NODES, progress=lambda stage, fraction: None,
+                    up: str | None = None):
+    """(Mesh, DeformationGraph, Upright) for a loaded mesh: turned +Y up (`up`, or as its file and shape
+    say: mesh.upright), stood in metres, its graph built."""
+    upright = find_upright(raw, path) if up is None else Upright(up, {}, f"+{up.upper()} up, as chosen")
+    mesh = standing_mesh(turned(raw, upright.up))
     progress("building graph", 0.3)
     graph = build_graph(mesh, nodes=nodes, seed=0)
     progress("packing physics spheres", 0.9)
     studio_packing(mesh)  # cached: the payload is then ready without blocking the server's event loop
     progress("ready", 1.0)
-    return mesh, graph
+    return mesh, graph, upright
 
 
 def mesh_payload(mesh: Mesh, graph, mesh_id: int, name: str) -> dict:

@@ -9,6 +9,8 @@ Client → server (WebSocket text, JSON objects with a "type"):
     {"type": "subscribe", "skeletons": bool, "window": int}   (also receive the other users' skeleton
         frames; with window > 0 the server keeps at most that many messages unacknowledged)
     {"type": "ack", "received": int}   (messages of any kind received so far, counting from the welcome)
+    "person": int (1..MAX_PERSON) on skeleton, possess, release, subset and fit: one of several people in
+        the page's camera, a user of its own (named by `person_client`); without it, the page's own user
 
 Server → client: JSON {"type": "welcome" | "state" | "skeleton" | "stats" | "error" | "progress", …}
 and binary node-transform blocks (kinetre/wire/transforms.py).
@@ -88,6 +90,29 @@ def parse_skeleton(msg: dict) -> tuple[int, float, Skeleton]:
     except BadSkeletonError as exc:
         raise ProtocolError(str(exc)) from None
     return int(seq), t, skeleton
+
+
+MAX_PERSON = 1 << 20
+
+
+def parse_person(msg: dict) -> int | None:
+    """The "person" of a message (a tracked person's stable id in the sender's camera), or None."""
+    person = msg.get("person")
+    if person is None:
+        return None
+    if type(person) is not int or not 1 <= person <= MAX_PERSON:
+        raise ProtocolError(f"'person' must be an integer 1..{MAX_PERSON}, got {person!r}")
+    return person
+
+
+def person_client(client: str, person: int | None) -> str:
+    """The user name of person `person` in `client`'s camera (no dots: it ends a channel subject)."""
+    return client if person is None else f"{client}p{person}"
+
+
+def is_person_of(user: str, client: str) -> bool:
+    """Whether `user` is one of the people in `client`'s camera (see `person_client`)."""
+    return user.startswith(client + "p") and user[len(client) + 1:].isdigit()
 
 
 def skeleton_json(client: str, seq: int, t: float, skeleton: Skeleton) -> bytes:

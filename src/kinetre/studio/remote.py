@@ -161,6 +161,9 @@ class GatewayScene:
     def forget(self, client: str) -> None:
         self.hub.publish(Frame(command_subject(client), 0, now_ms(), b'{"type": "bye"}'))
 
+    def set_up(self, up: str) -> Job:
+        raise KinetreError("this studio relays to a remote scene: its mesh is stood up on the scene's own studio")
+
     def set_joint_map(self, joint_map) -> dict | None:
         raise KinetreError("this studio relays to a remote scene: a joint map is set on the scene's own "
                            "studio, not through a gateway")

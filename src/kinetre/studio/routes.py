@@ -2,6 +2,8 @@
 
     GET  /api/state            the scene state (JSON)
     GET  /api/mesh/{id}        the current mesh with its skinning data (JSON, base64 arrays)
+    POST /api/mesh/up?up=y|z   stand the current mesh with that stored axis up (the page's override of the up
+                               axis found on load, mesh/upright.py): a job like an upload
     POST /api/mesh?name=F      upload a mesh file (OBJ/PLY/STL/GLB…): a job that loads it and builds the graph;
                                a .zip of RGB-D frames (TUM or Redwood layout) is scanned into a mesh first
                                (&segment=plane|none, &voxel=metres)
@@ -58,6 +60,13 @@ def api_routes(host: SceneHost, hub: Channels, connected: Callable[[str], bool])
                 return JSONResponse({"error": f"{name}: voxel must be a number in metres"}, 400)
             scan_options = {"segment": None if segment == "none" else segment, "voxel": voxel}
         job = host.start_job(name, data, scan_options)
+        return JSONResponse({"job": job.id}, 202)
+
+    async def mesh_up(request: Request) -> Response:
+        try:
+            job = host.set_up(request.query_params.get("up", ""))
+        except KinetreError as exc:
+            return JSONResponse({"error": str(exc)}, 400)
         return JSONResponse({"job": job.id}, 202)
 
     async def job_get(request: Request) -> Response:
@@ -136,6 +145,7 @@ def api_routes(host: SceneHost, hub: Channels, connected: Callable[[str], bool])
         Route("/api/state", state),
         Route("/api/mesh/{mesh_id:int}", mesh_get),
         Route("/api/mesh", mesh_post, methods=["POST"]),
+        Route("/api/mesh/up", mesh_up, methods=["POST"]),
         Route("/api/jobs/{job_id:int}", job_get),
         Route("/api/voice", voice_post, methods=["POST"]),
         Route("/api/record/start", record_start, methods=["POST"]),

@@ -22,7 +22,9 @@ from ..deform.pose import GraphPose
 from ..errors import AttachError
 from ..graph.graph import DeformationGraph
 from ..mesh.mesh import Mesh
+from ..mesh.upright import Upright
 from ..skeleton.models import Skeleton
+from ..motion.fit import yaw_rotation
 from ..skeleton.subsets import subset_mask
 from ..wire.transforms import pack_transforms
 from .channels import Channels, Frame, now_ms
@@ -54,6 +56,7 @@ class User:
     period: float = 0.0  # running mean of the time between its frames (s)
     bind: Skeleton | None = None  # mesh frame, the pose at possession (None = not possessing)
     subset: str | list | None = None
+    stand: tuple | None = None  # (R, t): where a joint map's source stands, x -> R x + t (see Scene.stand_in)
 
     @property
     def latest(self) -> Skeleton | None:
@@ -72,6 +75,10 @@ class User:
     @latest.setter
     def latest(self, skeleton: Skeleton | None) -> None:
         self.parsed, self.raw = skeleton, None
+
+    def placed(self, skeleton: Skeleton) -> Skeleton:
+        """The frame moved to where the user's joint-map source stands (unchanged without one)."""
+        return skeleton if self.stand is None else skeleton.transformed(1.0, *self.stand)
 
     def masked(self, skeleton: Skeleton) -> Skeleton:
         """Joints outside the user's subset count as untracked, so they neither attach nor pull."""
@@ -102,7 +109,8 @@ class Scene:
         Shown in the page.
     """
 
-    def __init__(self, hub: Channels, mesh: Mesh, graph: DeformationGraph, name: str = "mesh", solver=None):
+    def __init__(self, hub: Channels, mesh: Mesh, graph: DeformationGraph, name: str = "mesh", solver=None,
+                 upright: Upright | None = None):
         self.hub = hub
         self.solver = solver if solver is not None else InlineSolver()  # SolveWorker: the rig in its own process
         self.attached: list = []  # per possessor, the joints that attached
@@ -127,13 +135,14 @@ class Scene:
         self.frames_in = 0  # skeleton frames that reached the scene
         self._skeletons = None  # the subscription, whose `skipped` counts frames merged latest-wins
         self._unpublished = None  # (pose, t_source, skeletons) solved, published once the next solve is sent
-        self.set_mesh(mesh, graph, name)
+        self.set_mesh(mesh, graph, name, upright)
 
     # --- mesh and placement -------------------------------------------------------------------------
-    def set_mesh(self, mesh: Mesh, graph: DeformationGraph, name: str) -> None:
-        """Swap in a new mesh: everybody is released, the pose resets to rest."""
+    def set_mesh(self, mesh: Mesh, graph: DeformationGraph, name: str, upright: Upright | None = None) -> None:
+        """Swap in a new mesh: everybody is released, the pose resets to rest. `upright`: the up axis it
+        was stood on (shown on the page, which can override it)."""
         self._flush()
-        self.mesh, self.graph, self.name = mesh, graph, name
+        self.mesh, self.graph, self.name, self.upright = mesh, graph, name, upright
         self.mesh_id += 1
         self.rig, self.possessors = None, []
         for user in self.users.values():
@@ -221,28 +230,42 @@ class Scene:
         user = self.user(client)
         if user.latest is None or not user.latest.tracked.any():
             raise AttachError("no tracked skeleton from this client yet: nothing to possess with")
+        source = None
         if subset is None and self.joint_map is not None:
             others = sum(1 for c, u in self.users.items() if c != client and u.bind is not None)
             if others < len(self.joint_map.sources):
-                subset = self.joint_map.sources[others].joint_names(user.latest.model, self.joint_map.path)
+                source = self.joint_map.sources[others]
+                subset = source.joint_names(user.latest.model, self.joint_map.path)
         if subset is not None:
             subset_mask(user.latest.model, subset)  # BadSkeletonError on an unknown name
-        old_bind, old_subset = user.bind, user.subset
+        old_bind, old_subset, old_stand = user.bind, user.subset, user.stand
         user.subset = subset
-        user.bind = user.masked(self.placement.to_local(user.latest))
+        user.stand = self.stand_in(user.latest, source) if source is not None else None
+        user.bind = user.masked(self.placement.to_local(user.placed(user.latest)))
         try:
             await self._rebuild_rig()
         except Exception:
-            user.bind, user.subset = old_bind, old_subset
+            user.bind, user.subset, user.stand = old_bind, old_subset, old_stand
             await self._rebuild_rig()
             raise
         self.publish_state()
+
+    def stand_in(self, skeleton: Skeleton, source) -> tuple[np.ndarray, np.ndarray]:
+        """(R, t) that moves a joint-map source's person, turned by its `yaw`, from where they stand to the
+        mesh's centre plus its `offset` (metres, turned with the mesh): two people anywhere in one camera's
+        view become the front and back legs of one horse, as two separate captures would in a joint take."""
+        root = skeleton.positions[0] if skeleton.tracked[0] else skeleton.positions[skeleton.tracked].mean(axis=0)
+        root = np.array([root[0], 0.0, root[2]])
+        turn = yaw_rotation(source.yaw)
+        target = np.asarray(self.placement.position, dtype=np.float64) + self.placement.rotation @ source.offset
+        target[1] = 0.0  # only across the floor: the person keeps their height
+        return turn, target - turn @ root
 
     async def release(self, client: str) -> None:
         user = self.users.get(client)
         if user is None or user.bind is None:
             return
-        user.bind = None
+        user.bind = user.stand = None
         await self._rebuild_rig()
         self.publish_state()
 
@@ -376,7 +399,7 @@ class Scene:
             if len(users) != len(self.possessors):
                 self._flush()
                 return None
-            frames = [u.masked(self.placement.to_local(u.latest)) for u in users]
+            frames = [u.masked(self.placement.to_local(u.placed(u.latest))) for u in users]
             arrived = min((u.arrived for u in users if u.used != u.seq), default=time.monotonic())
             for u in users:
                 u.used = u.seq
@@ -435,7 +458,9 @@ class Scene:
         return {
             "type": "state",
             "mesh": {"id": self.mesh_id, "name": self.name, "url": f"/api/mesh/{self.mesh_id}",
-                     "nodes": self.graph.node_count, "vertices": int(len(self.mesh.vertices))},
+                     "nodes": self.graph.node_count, "vertices": int(len(self.mesh.vertices)),
+                     "up": self.upright.up if self.upright else "y",
+                     "up_reason": self.upright.reason if self.upright else ""},
             "placement": self.placement.as_dict(),
             "users": [{"client": u.client, "possessing": u.bind is not None, "subset": u.subset,
                        "frames": u.frames, "attached": attached.get(u.client, [])}

@@ -17,7 +17,7 @@ from starlette.websockets import WebSocket, WebSocketDisconnect
 from .channels import Channels, Frame
 from .fanout import Framing, raw_socket
 from .host import ANSWERED, SCENE_COMMANDS, SceneHost, answer_error, reply
-from .protocol import ProtocolError, parse_message, parse_skeleton, with_client
+from .protocol import ProtocolError, parse_message, parse_person, parse_skeleton, person_client, with_client
 from .subjects import SKELETON_PREFIX, SKELETONS, STATE, TRANSFORMS, client_subject, skeleton_subject
 
 
@@ -93,8 +93,8 @@ class Viewer:
                 seq, t, skeleton = parse_skeleton(msg)
                 stats.received += 1
                 stats.last_seq = seq
-                self.hub.publish(Frame(skeleton_subject(self.client), seq, t, with_client(text, self.client),
-                                       (seq, t, skeleton)))
+                user = person_client(self.client, parse_person(msg))  # one of several people in its camera
+                self.hub.publish(Frame(skeleton_subject(user), seq, t, with_client(text, user), (seq, t, skeleton)))
             elif kind == "subscribe":
                 stats.skeletons = bool(msg.get("skeletons"))
                 if stats.skeletons:

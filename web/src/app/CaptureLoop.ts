@@ -1,17 +1,18 @@
-// This page's capture: camera → landmark worker → people with stable ids → the followed person as a
-// Kinect 20 skeleton, handed to the page for its skeleton channel. Detection runs in a worker; the loop
-// offers it the camera's newest frame whenever it is idle, so the page never waits on it.
+// This page's capture: camera → landmark worker → people with stable ids (People) → the followed person as
+// a Kinect 20 skeleton, handed to the page for its skeleton channel, and every other person's frame on a
+// channel of their own. Detection runs in a worker; the loop offers it the camera's newest frame whenever
+// it is idle, so the page never waits on it.
 import type { Camera } from '../capture/Camera';
 import type { Detection } from '../capture/detection';
-import { KinectMapper } from '../capture/KinectMapper';
 import { LandmarkTracker } from '../capture/LandmarkTracker';
-import { PersonTracks } from '../capture/PersonTracks';
 import type { Vec3 } from '../net/protocol';
+import { People } from './People';
 
 /** One skeleton frame of the followed person: Kinect 20 joints in metres (null rows untracked). */
 export interface UserFrame {
   positions: (Vec3 | null)[];
   tracked: boolean[];
+  t: number; // when the camera frame was captured (ms since the epoch): latency counts from it
 }
 
 /** What the capture loop tells the page. */
@@ -21,14 +22,14 @@ export interface CaptureHost {
   running(on: boolean): void;
   /** The followed person's frame, or null when nobody is in view (the page then holds the pose). */
   user(frame: UserFrame | null): void;
+  /** A skeleton message of one of the other people in view (it names its "person"). */
+  send(message: object): void;
 }
 
 export class CaptureLoop {
   readonly tracker: LandmarkTracker;
-  readonly tracks = new PersonTracks();
-  readonly mapper = new KinectMapper();
-  /** Ids of the people in this camera's view (the lowest is the one this page's channel follows). */
-  people: number[] = [];
+  /** The people in this camera's view: the main one drives this page's channel, the others their own. */
+  readonly people: People;
   trackedJoints = 0;
   trackingLost = false;
 
@@ -41,13 +42,13 @@ export class CaptureLoop {
       numPoses: 4,
       features: { hands: !query.has('nohands'), face: !query.has('noface') },
     });
+    this.people = new People((m) => this.host.send(m));
   }
 
   async toggle(): Promise<void> {
     if (this.camera.running) {
       this.camera.stop();
-      this.tracks.forget();
-      this.people = [];
+      this.people.forget();
       this.host.running(false);
       return;
     }
@@ -74,16 +75,11 @@ export class CaptureLoop {
 
   private onDetection(d: Detection): void {
     if (!this.camera.running) return;
-    const ids = this.tracks.update(d.poses, d.width / d.height, d.t);
-    this.people = [...ids].sort((a, b) => a - b);
-    // this page's channel follows the person tracked longest (the lowest id in view)
-    const first = ids.indexOf(this.people[0]);
-    const pose = first >= 0 ? d.poses[first] : null;
-    if (pose) {
-      const frame = this.mapper.map(pose.world, pose.image);
-      this.trackedJoints = frame.tracked.filter(Boolean).length;
+    const main = this.people.update(d).find((p) => p.main);
+    if (main) {
+      this.trackedJoints = main.frame.tracked.filter(Boolean).length;
       this.trackingLost = false;
-      this.host.user(frame);
+      this.host.user({ ...main.frame, t: performance.timeOrigin + d.t });
     } else {
       this.trackingLost = true;
       this.trackedJoints = 0;

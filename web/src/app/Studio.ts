@@ -18,6 +18,7 @@ import { SkinnedGraphMesh } from '../scene/SkinnedGraphMesh';
 import { Viewport } from '../scene/Viewport';
 import { Panel } from '../ui/Panel';
 import { JointMapControl } from '../rigging/JointMapControl';
+import { UpAxisControl } from '../rigging/UpAxisControl';
 import { VoiceListener, type VoiceResult } from '../voice/VoiceListener';
 import { CaptureLoop, type UserFrame } from './CaptureLoop';
 import { statusLine } from './StatusLine';
@@ -38,6 +39,7 @@ export class Studio {
   readonly takes: TakeSession;
   readonly uploader: MeshUploader;
   readonly jointMap: JointMapControl;
+  readonly upAxis: UpAxisControl;
   readonly avatars: AvatarStage;
   readonly physics: Playground;
   readonly face: FaceController;
@@ -64,8 +66,11 @@ export class Studio {
       camera: () => void this.capture.toggle(),
       voice: () => void this.toggleVoice(),
       sample: () => this.socket.send({ type: 'player', on: !this.sampleUser() }),
-      possess: () => this.socket.send({ type: 'possess', subset: this.panel.subset }),
-      release: () => this.socket.send({ type: 'release' }),
+      // every person in this camera: the page's own user first, then the others in id order (a joint
+      // map gives them its sources in that order)
+      possess: () => [{ type: 'possess', subset: this.panel.subset },
+        ...this.capture.people.possessMessages(this.panel.subset)].forEach((m) => this.socket.send(m)),
+      release: () => [{ type: 'release' }, ...this.capture.people.releaseMessages()].forEach((m) => this.socket.send(m)),
       subset: (name) => this.socket.send({ type: 'subset', subset: name }),
       fit: () => this.socket.send({ type: 'fit' }),
       mode: (mode) => this.placement.setMode(mode),
@@ -77,6 +82,7 @@ export class Studio {
       say,
       running: (on) => { this.panel.setActive('camera', on); this.panel.showDriving(on); },
       user: (frame) => this.onUser(frame),
+      send: (message) => this.socket.sendFrame(message),
     });
     this.avatars = new AvatarStage(this.viewport.scene, this.panel.area('avatar'), say);
     this.placement = new PlacementControls(this.viewport.camera, this.viewport.renderer.domElement,
@@ -101,6 +107,7 @@ export class Studio {
     }, (file) => this.avatars.tryUpload(file));
     this.uploader.bind(root, this.panel.fileInput);
     this.jointMap = new JointMapControl(this.panel.area('body'), say);
+    this.upAxis = new UpAxisControl(this.panel.area('scene'), say);
 
     const url = `${location.protocol === 'https:' ? 'wss' : 'ws'}://${location.host}${location.pathname.replace(/[^/]*$/, '')}ws`;
     this.socket = new StudioSocket(url, {
@@ -153,6 +160,7 @@ export class Studio {
         this.panel.setActive('possess', this.possessing);
         this.panel.setActive('record', m.recording);
         this.jointMap.show(m.joint_map);
+        this.upAxis.show(m.mesh.up, m.mesh.up_reason);
         this.updateStatus();
         break;
       }
@@ -214,16 +222,16 @@ export class Studio {
     if (frame) {
       this.me.group.visible = true;
       this.me.update(frame.positions, this.preview?.attachableJoints ?? []);
-      this.sendFrame(frame.positions, frame.tracked);
+      this.sendFrame(frame.positions, frame.tracked, frame.t);
       this.avatars.drive(frame.positions, frame.tracked, 'me');
     } else {
       // nobody in view: an all-untracked frame makes the server hold the last pose
-      this.sendFrame(new Array(JOINT_COUNT).fill(null), new Array(JOINT_COUNT).fill(false));
+      this.sendFrame(new Array(JOINT_COUNT).fill(null), new Array(JOINT_COUNT).fill(false), Date.now());
     }
   }
 
-  private sendFrame(positions: (Vec3 | null)[], tracked: boolean[]): void {
-    this.socket.sendFrame({ type: 'skeleton', seq: ++this.seq, t: Date.now(), model: 'kinect20', positions, tracked });
+  private sendFrame(positions: (Vec3 | null)[], tracked: boolean[], t: number): void {
+    this.socket.sendFrame({ type: 'skeleton', seq: ++this.seq, t, model: 'kinect20', positions, tracked });
   }
 
   // --- voice ----------------------------------------------------------------------------------------

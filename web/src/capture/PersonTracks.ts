@@ -4,7 +4,7 @@
 // person may have moved grows with the time they were gone.
 import type { PoseLandmarks } from './detection';
 
-const MEMORY_MS = 4000;
+const MEMORY_MS = 10000; // the landmarker may lose one of several people for seconds while it tracks the others
 const GATE = 0.15; // image widths a person may move between two frames
 const GATE_PER_SECOND = 0.15; // … plus this much per second unseen
 const TORSO = [11, 12, 23, 24];

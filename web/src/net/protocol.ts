@@ -29,7 +29,7 @@ export interface PlacementState {
 
 export interface SceneState {
   type: 'state';
-  mesh: { id: number; name: string; url: string; nodes: number; vertices: number };
+  mesh: { id: number; name: string; url: string; nodes: number; vertices: number; up?: string; up_reason?: string };
   placement: PlacementState;
   users: UserState[];
   recording: boolean;

@@ -1,5 +1,19 @@
 // window.kinetre: a small read-only view of the page for browser tests and for the curious in devtools.
+import * as THREE from 'three';
 import type { Studio } from '../app/Studio';
+import type { SkinnedGraphMesh } from '../scene/SkinnedGraphMesh';
+
+/** World-space [min, max] of the mesh as shown: its skinned vertices (up to 2048 of them, evenly spread)
+ * through the placement. */
+function meshBox(mesh: SkinnedGraphMesh): { min: number[]; max: number[] } {
+  const count = mesh.data.positions.length / 3;
+  const step = Math.max(1, Math.floor(count / 2048));
+  const indices = Array.from({ length: Math.ceil(count / step) }, (_, i) => i * step);
+  const box = new THREE.Box3();
+  const v = new THREE.Vector3();
+  for (const p of mesh.skinnedPositions(indices)) box.expandByPoint(v.set(p[0], p[1], p[2]));
+  return { min: box.min.toArray(), max: box.max.toArray() };
+}
 
 export function installTestHook(studio: Studio): void {
   const sampleIndices = (count: number, total: number) =>
@@ -25,6 +39,8 @@ export function installTestHook(studio: Studio): void {
         possessing: studio.possessing,
         attachableJoints: studio.preview?.attachableJoints.filter(Boolean).length ?? 0,
         users: studio.state?.users ?? [],
+        meshUp: studio.state?.mesh.up ?? null,
+        meshBox: mesh ? meshBox(mesh) : null,
         placement: studio.state?.placement ?? null,
         recording: studio.state?.recording ?? false,
         vertices: mesh ? mesh.skinnedPositions(sampleIndices(64, vertexCount)) : [],
@@ -35,7 +51,16 @@ export function installTestHook(studio: Studio): void {
         detectMs: studio.capture.tracker.detectMs,
         detections: studio.capture.tracker.detections,
         delegate: studio.capture.tracker.delegate,
-        people: studio.capture.people,
+        people: studio.capture.people.ids,
+        mainPerson: studio.capture.people.main,
+        // each person in view: the server user it is, whether that user possesses, its tracked joints
+        personUsers: studio.capture.people.ids.map((id) => {
+          const user = studio.capture.people.user(studio.socket.client, id);
+          const u = studio.state?.users.find((x) => x.client === user);
+          return { id, user, possessing: Boolean(u?.possessing), subset: u?.subset ?? null,
+            attached: u?.attached.length ?? 0,
+            tracked: studio.capture.people.frames.get(id)?.tracked.filter(Boolean).length ?? 0 };
+        }),
         latencyMs: median(studio.latency),
         message: studio.panel.messageText,
         voice: studio.lastVoice,

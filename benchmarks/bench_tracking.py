@@ -1,0 +1,62 @@
+"""Tracking in the page: Debian's Chromium (SwiftShader, no GPU) with a video as its camera, MediaPipe Tasks
+in the page's worker, the mesh possessed; one person (pose_1) and two people (two_people_pose_1).
+
+Prints JSON lines {"bench": "tracking_page", "people": N, ...}:
+  detections_per_s    landmark results the worker delivered per second (pose, hands and face)
+  render_fps          frames the page drew per second meanwhile (goal: >= 8 under SwiftShader)
+  latency_p95_ms      camera frame captured -> node transforms of the solve that used it, on the page
+  id_switches         ids seen beyond the people in view (goal: 0)
+"""
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+import tempfile
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+VIDEO = ROOT / ".." / "shared" / "data" / "video"
+sys.path.insert(0, str(ROOT / "tests"))
+
+from e2e.node_driver import run_driver  # noqa: E402
+from studio.conftest import start_server  # noqa: E402
+
+SECONDS = 15
+
+
+def y4m(source: Path, target: Path) -> Path:
+    subprocess.run(["ffmpeg", "-v", "error", "-y", "-i", str(source), "-r", "30", "-pix_fmt", "yuv420p",
+                    "-f", "yuv4mpegpipe", str(target)], check=True, timeout=120)
+    return target
+
+
+def main() -> None:
+    if not (ROOT / "src" / "kinetre" / "studio" / "static" / "index.html").is_file():
+        print(json.dumps({"bench": "tracking_page", "error": "the page is not built: make web"}))
+        return
+    with tempfile.TemporaryDirectory(prefix="kinetre-bench-") as folder:
+        cameras = [(1, (VIDEO / "pose_1_320x240_30fps.y4m").resolve()),
+                   (2, y4m((VIDEO / "two_people_pose_1_640x360.mp4").resolve(), Path(folder) / "two.y4m"))]
+        proc, url = start_server(nodes=128, sample_motion=False)
+        try:
+            for people, video in cameras:
+                r = run_driver("driver_people.mjs", {"scenario": "track", "url": url + "/", "query": "?noshadows",
+                                                     "video": str(video), "people": people, "seconds": SECONDS,
+                                                     "artifacts": str(ROOT / "tests" / "e2e" / "artifacts")}, 300)
+                p = r["perf"]
+                print(json.dumps({"bench": "tracking_page", "people": people, "camera": video.name,
+                                  "delegate": p["delegate"], "seconds": SECONDS, "possessing": r["possessing"],
+                                  "detections_per_s": round(p["detectionsPerSecond"], 2),
+                                  "render_fps": round(p["renderFps"], 1),
+                                  "latency_p95_ms": None if p["latencyP95Ms"] is None else round(p["latencyP95Ms"]),
+                                  "latency_median_ms": None if p["latencyMedianMs"] is None else round(p["latencyMedianMs"]),
+                                  "worker_ms_per_detection": round(p["detectMs"], 1),
+                                  "id_switches": p["idSwitches"]}), flush=True)
+        finally:
+            proc.terminate()
+            proc.wait(10)
+
+
+if __name__ == "__main__":
+    main()

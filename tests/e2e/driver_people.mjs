@@ -1,0 +1,190 @@
+// Several people in one camera, and the up axis, in Debian's Chromium (tests/e2e/test_people_page.py and
+// benchmarks/bench_tracking.py):
+//   node driver_people.mjs '{"scenario": "horse" | "up" | "track", "url": "...", "video": "...", ...}'
+// horse: two people in the fake camera become two users with stable ids, possessing the mesh's front and
+//        back halves through the joint map `map`;
+// up:    the mesh's box as shown, then after one click on the up-axis button;
+// track: detection rate, render rate and capture → transforms latency while `seconds` of tracking run.
+import { mkdirSync, readFileSync } from 'node:fs';
+import { join, resolve } from 'node:path';
+import { launchWithCamera, report } from './harness.mjs';
+
+const config = JSON.parse(process.argv[2]);
+const result = { scenario: config.scenario, steps: [] };
+const t0 = Date.now();
+const log = (step, extra = {}) => result.steps.push({ step, s: (Date.now() - t0) / 1000, ...extra });
+
+async function open(browser) {
+  const page = await browser.newPage({ viewport: { width: 720, height: 540 } });
+  page.setDefaultTimeout(120000);
+  page.on('pageerror', (e) => log('page error', { message: String(e) }));
+  // MediaPipe's wasm logs its INFO and warning lines to console.error
+  page.on('console', (m) => {
+    if (m.type() === 'error' && !/^(INFO:|[IW]\d{4} )/.test(m.text())) log('console error', { message: m.text() });
+  });
+  await page.goto(config.url + (config.query ?? ''));
+  await page.waitForFunction(() => window.kinetre && window.kinetre.state().meshId !== null, null, { timeout: 60000 });
+  return page;
+}
+
+const state = (page) => page.evaluate(() => {
+  const s = window.kinetre.state();
+  delete s.skeleton;
+  return s;
+});
+
+async function until(page, predicate, arg, timeout = 60000) {
+  const handle = await page.waitForFunction(predicate, arg, { timeout, polling: 250 });
+  return handle.jsonValue();
+}
+
+async function screenshot(page, file) {
+  mkdirSync(config.artifacts, { recursive: true });
+  await page.screenshot({ path: join(config.artifacts, file) });
+}
+
+/** Largest displacement (metres) of any sampled vertex, behind and in front of the plane z = `middle`. */
+function halfSpreads(samples, middle) {
+  const spread = [0, 0];
+  for (let v = 0; v < samples[0].length; v++) {
+    const side = samples[0][v][2] < middle ? 0 : 1;
+    for (let a = 1; a < samples.length; a++) {
+      spread[side] = Math.max(spread[side], Math.hypot(...samples[a][v].map((x, k) => x - samples[0][v][k])));
+    }
+  }
+  return spread;
+}
+
+async function startCamera(page, people) {
+  await page.keyboard.press('c');
+  await until(page, (n) => {
+    const s = window.kinetre.state();
+    return s.personUsers.length >= n && s.personUsers.every((p) => p.tracked >= 12);
+  }, people, 180000);
+  log('people tracked', { people: (await state(page)).personUsers });
+}
+
+async function horse() {
+  const browser = await launchWithCamera(resolve(config.video));
+  try {
+    const page = await open(browser);
+    const map = readFileSync(config.map, 'utf8');
+    const shown = await page.evaluate(async (body) => (await (await fetch('api/jointmap?name=two-people-horse.json',
+      { method: 'POST', body })).json()).joint_map, map);
+    log('joint map', { shown });
+    // each detection's people (torso centres, ids): the trace a failure shows
+    await page.evaluate(() => {
+      const people = window.kinetre.studio.capture.people;
+      const update = people.update.bind(people);
+      window.peopleTrace = [];
+      people.update = (d) => {
+        const out = update(d);
+        window.peopleTrace.push([Math.round(d.t), out.map((p) => p.id), d.poses.map((q) => [11, 12, 23, 24]
+          .map((i) => q.image[i]).reduce((a, l) => [a[0] + l.x / 4, a[1] + l.y / 4], [0, 0]).map((x) => +x.toFixed(3)))]);
+        return out;
+      };
+    });
+    await startCamera(page, 2);
+    // ids over the clip: the same two people keep the same two ids
+    const seen = new Set();
+    let views = 0;
+    const end = Date.now() + (config.watch ?? 6) * 1000;
+    while (Date.now() < end) {
+      const s = await state(page);
+      s.people.forEach((id) => seen.add(id));
+      if (s.people.length) views++;
+      await page.waitForTimeout(300);
+    }
+    result.idsSeen = [...seen].sort((a, b) => a - b);
+    result.trace = await page.evaluate(() => window.peopleTrace);
+    result.views = views;
+    const bothInView = () => until(page, () => window.kinetre.state().people.length >= 2, null, 120000);
+    await bothInView();
+    const unfitted = (await state(page)).placement.position;
+    await page.keyboard.press('f');
+    await until(page, (p) => window.kinetre.state().placement.position[2] !== p[2], unfitted, 30000);
+    await bothInView();
+    await page.keyboard.press('p');
+    await until(page, () => {
+      const s = window.kinetre.state();
+      return (s.personUsers.length >= 2 && s.personUsers.every((p) => p.possessing)) || document.querySelector('#message').className === 'error';
+    }, null, 90000);
+    const s = await state(page);
+    result.skeletons = await page.evaluate(() => Object.fromEntries([...window.kinetre.studio.capture.people.frames].map(([id, f]) => [id, f.positions])));
+    result.possessed = s.personUsers;
+    result.placement = s.placement;
+    result.message = s.message;
+    if (!s.personUsers.every((p) => p.possessing)) {
+      throw new Error(`possess failed: ${s.message} ${JSON.stringify({ skeletons: result.skeletons, placement: s.placement, users: s.personUsers })}`);
+    }
+    await screenshot(page, 'people-horse.png');
+    const samples = [];
+    for (let i = 0; i < 12; i++) {
+      samples.push((await state(page)).vertices);
+      await page.waitForTimeout(400);
+    }
+    result.halfSpreads = halfSpreads(samples, s.placement.position[2]);
+    result.users = (await state(page)).users;
+  } finally {
+    await browser.close();
+  }
+}
+
+async function up() {
+  const browser = await launchWithCamera(null);
+  try {
+    const page = await open(browser);
+    const before = await state(page);
+    result.before = { up: before.meshUp, box: before.meshBox, meshId: before.meshId };
+    await screenshot(page, 'up-before.png');
+    await page.click('#up-axis');
+    await until(page, (id) => window.kinetre.state().meshId > id && window.kinetre.state().meshBox !== null, before.meshId, 120000);
+    const after = await state(page);
+    result.after = { up: after.meshUp, box: after.meshBox, meshId: after.meshId, message: after.message };
+    await screenshot(page, 'up-after.png');
+  } finally {
+    await browser.close();
+  }
+}
+
+async function track() {
+  const browser = await launchWithCamera(resolve(config.video));
+  try {
+    const page = await open(browser);
+    await startCamera(page, config.people ?? 1);
+    await page.keyboard.press('f');
+    await page.waitForTimeout(500);
+    await page.keyboard.press('p');
+    await until(page, () => window.kinetre.state().possessing || document.querySelector('#message').className === 'error',
+      null, 90000);
+    const a = await state(page);
+    result.possessing = a.possessing;
+    result.message = a.message;
+    const frames0 = await page.evaluate(() => window.kinetre.studio.viewport.frames);
+    const latencies = [];
+    const end = Date.now() + (config.seconds ?? 15) * 1000;
+    const seen = new Set();
+    while (Date.now() < end) {
+      latencies.push(...await page.evaluate(() => window.kinetre.studio.latency.splice(0)));
+      (await page.evaluate(() => window.kinetre.state().people)).forEach((id) => seen.add(id));
+      await page.waitForTimeout(500);
+    }
+    const b = await state(page);
+    const frames1 = await page.evaluate(() => window.kinetre.studio.viewport.frames);
+    const seconds = (config.seconds ?? 15);
+    latencies.sort((x, y) => x - y);
+    result.perf = {
+      detectionsPerSecond: (b.detections - a.detections) / seconds,
+      renderFps: (frames1 - frames0) / seconds,
+      latencyP95Ms: latencies.length ? latencies[Math.min(latencies.length - 1, Math.floor(0.95 * latencies.length))] : null,
+      latencyMedianMs: latencies.length ? latencies[Math.floor(latencies.length / 2)] : null,
+      idSwitches: Math.max(0, seen.size - (config.people ?? 1)),
+      detectMs: b.detectMs, delegate: b.delegate, people: b.people,
+    };
+  } finally {
+    await browser.close();
+  }
+}
+
+const scenarios = { horse, up, track };
+await report(result, () => scenarios[config.scenario](), { t0, out: config.out });

@@ -1,0 +1,90 @@
+"""Several people in one camera, and the mesh's up axis, in a real browser (tests/e2e/driver_people.mjs).
+
+The fake camera plays two people dancing side by side (../shared/data/video/two_people_pose_1_640x360.mp4,
+turned into Chromium's .y4m here); they carry a horse as its front and back legs (the paper's two-person
+horse), from one camera.
+"""
+from __future__ import annotations
+
+import shutil
+import subprocess
+from pathlib import Path
+
+import numpy as np
+import pytest
+import trimesh
+from e2e.node_driver import run_driver
+from studio.conftest import start_server
+from studio.fixtures_horse import horse_obj
+
+from kinetre.mesh.load import load_mesh
+from kinetre.mesh.upright import turned
+from kinetre.studio.placement import standing_mesh
+
+HERE = Path(__file__).resolve().parent
+ROOT = HERE.parents[1]
+ARTIFACTS = HERE / "artifacts"
+TWO_PEOPLE = ROOT / ".." / "shared" / "data" / "video" / "two_people_pose_1_640x360.mp4"
+HORSE_MAP = ROOT / "examples" / "maps" / "two-people-horse.json"
+
+
+def y4m(source: Path, target: Path) -> Path:
+    """`source` as a 30 fps 4:2:0 .y4m, the form Chromium's fake camera plays."""
+    assert shutil.which("ffmpeg"), "ffmpeg is needed (make setup installs it)"
+    subprocess.run(["ffmpeg", "-v", "error", "-y", "-i", str(source), "-r", "30", "-pix_fmt", "yuv420p",
+                    "-f", "yuv4mpegpipe", str(target)], check=True, timeout=120)
+    return target
+
+
+def drive(url: str, scenario: str, query: str, timeout: float = 600, **extra) -> dict:
+    assert (ROOT / "src" / "kinetre" / "studio" / "static" / "index.html").is_file(), "run `make web` first"
+    config = {"scenario": scenario, "url": url + "/", "query": query, "artifacts": str(ARTIFACTS), **extra}
+    return run_driver("driver_people.mjs", config, timeout)
+
+
+@pytest.fixture(scope="module")
+def two_people(tmp_path_factory):
+    return y4m(TWO_PEOPLE.resolve(), tmp_path_factory.mktemp("camera") / "two_people.y4m")
+
+
+def test_two_people_in_one_camera_carry_the_two_halves_of_one_mesh(two_people, tmp_path):
+    proc, url = start_server(str(horse_obj(tmp_path / "horse.obj")), nodes=64, sample_motion=False)
+    try:
+        r = drive(url, "horse", "?noshadows&nohands&noface", video=str(two_people), map=str(HORSE_MAP),
+                  out=str(ARTIFACTS / "people-horse.json"))
+    finally:
+        proc.terminate()
+        proc.wait(10)
+    assert [s for s in r["steps"] if "error" in s["step"]] == []
+    assert len(r["idsSeen"]) == 2 and r["views"] >= 10, r["trace"]  # two people, the same two ids all along
+    people = r["possessed"]
+    assert [p["id"] for p in people] == r["idsSeen"]
+    lower = ["HipCenter", "HipLeft", "KneeLeft", "AnkleLeft", "FootLeft", "HipRight", "KneeRight", "AnkleRight",
+             "FootRight"]
+    assert all(p["possessing"] and p["subset"] == lower and p["attached"] >= 1 for p in people)
+    assert people[0]["user"] != people[1]["user"]  # two users on the server, one per person
+    # the horse moves with its dancers (how much each half moves depends on the depth MediaPipe's small
+    # figures give: the map's halves are asserted by their attachments above)
+    assert max(r["halfSpreads"]) > 0.02
+
+
+def test_a_z_up_mesh_stands_upright_and_one_click_overrides_it(data_dir, tmp_path):
+    armadillo = load_mesh(data_dir / "meshes" / "armadillo.obj")
+    quarter = trimesh.transformations.rotation_matrix(np.pi / 2, [1, 0, 0])[:3, :3]  # +Y up → stored +Z up
+    stored = tmp_path / "armadillo_z_up.ply"
+    trimesh.Trimesh(armadillo.vertices @ quarter.T, armadillo.faces, process=False).export(stored)
+    raw = load_mesh(stored)
+    upright = standing_mesh(turned(raw, "z")).bounds
+    as_stored = standing_mesh(raw).bounds
+    proc, url = start_server(str(stored), nodes=32, sample_motion=False)
+    try:
+        r = drive(url, "up", "?noshadows")
+    finally:
+        proc.terminate()
+        proc.wait(10)
+    assert [s for s in r["steps"] if "error" in s["step"]] == []
+    assert r["before"]["up"] == "z" and r["after"]["up"] == "y"
+    np.testing.assert_allclose(np.array([r["before"]["box"]["min"], r["before"]["box"]["max"]]), upright, atol=0.01)
+    np.testing.assert_allclose(np.array([r["after"]["box"]["min"], r["after"]["box"]["max"]]), as_stored, atol=0.01)
+    # upright it is taller (y) than deep (z); as stored it lies on its back, deeper than tall
+    assert np.ptp(upright[:, 1]) > 1.2 * np.ptp(upright[:, 2]) and np.ptp(as_stored[:, 2]) > 1.2 * np.ptp(as_stored[:, 1])
