@@ -62,9 +62,15 @@ def test_a_person_who_steps_out_keeps_their_id_for_a_while_then_a_newcomer_gets_
     assert out[-1]["release"] == [{"type": "release", "person": 2}, {"type": "release", "person": 3}]
 
 
-def test_the_main_person_stays_main_while_remembered(bundle):
+def test_the_main_person_drives_the_pages_channel_while_in_view(bundle):
     a, b = [0.3, 0.6], [0.7, 0.6]
-    out = run(bundle, [(0.0, [a]), (100.0, [a, b]), (200.0, [b]), (300.0, [a, b]), (6000.0, [b]), (11000.0, [b])])
-    assert [o["main"] for o in out] == [1, 1, 1, 1, 1, 2]  # 1 is gone for good only after the memory
-    assert out[2]["sent"] == [{"person": 2, "seq": 2, "tracked": 20}]  # 2 keeps its own channel meanwhile
-    assert out[-1]["sent"] == [] and out[-1]["user"] == ["c7"]  # now 2 drives the page's own channel
+    out = run(bundle, [(0.0, [a]), (100.0, [a, b]), (200.0, [b]), (300.0, [a, b])])
+    assert [o["main"] for o in out] == [1, 1, 2, 2]  # 1 missed: 2 takes the channel, and keeps it
+    assert out[1]["sent"] == [{"person": 2, "seq": 1, "tracked": 20}] and out[2]["sent"] == []
+    assert out[3]["sent"] == [{"person": 1, "seq": 1, "tracked": 20}] and out[3]["user"] == ["c7p1", "c7"]
+
+
+def test_a_person_keeps_their_current_track_over_an_older_one_nearby(bundle):
+    # a jump opened a second track; 2 s on, the person stands a little nearer the old one than their own
+    out = run(bundle, [(0.0, [[0.3, 0.6]]), (100.0, [[0.5, 0.6]]), (2000.0, [[0.5, 0.6]]), (2100.0, [[0.38, 0.6]])])
+    assert [o["ids"] for o in out] == [[1], [2], [2], [2]]

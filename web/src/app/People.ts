@@ -17,7 +17,7 @@ export class People {
   readonly tracks = new PersonTracks();
   /** Ids in view in the newest detection, ascending. */
   ids: number[] = [];
-  /** The person the page's own channel follows (kept while their track is remembered). */
+  /** The person the page's own channel follows: kept while in view, else the lowest id in view. */
   main: number | null = null;
   private readonly mappers = new Map<number, KinectMapper>();
   private readonly seqs = new Map<number, number>();
@@ -30,7 +30,7 @@ export class People {
   update(d: Detection): PersonFrame[] {
     const ids = this.tracks.update(d.poses, d.width / d.height, d.t);
     this.ids = [...ids].sort((a, b) => a - b);
-    if (this.main === null || !this.tracks.ids.includes(this.main)) this.main = this.ids[0] ?? null;
+    if (this.ids.length && (this.main === null || !this.ids.includes(this.main))) this.main = this.ids[0];
     for (const id of this.mappers.keys()) {
       if (!this.tracks.ids.includes(id)) { this.mappers.delete(id); this.frames.delete(id); }
     }

@@ -7,6 +7,8 @@ import type { PoseLandmarks } from './detection';
 const MEMORY_MS = 10000; // the landmarker may lose one of several people for seconds while it tracks the others
 const GATE = 0.15; // image widths a person may move between two frames
 const GATE_PER_SECOND = 0.15; // … plus this much per second unseen
+const AGE_COST = 0.05; // image widths a track's cost grows per second unseen: the person's current track
+// wins over an older one left nearby (a jump that opened a new track must not flip between the two)
 const TORSO = [11, 12, 23, 24];
 
 export interface Track {
@@ -63,7 +65,8 @@ export class PersonTracks {
     const centres = poses.map((p) => torsoCentre(p, aspect));
     const cost = centres.map((c) => this.tracks.map((t) => {
       const d = Math.hypot(c[0] - t.centre[0], c[1] - t.centre[1]);
-      return d <= GATE + (GATE_PER_SECOND * (now - t.lastSeen)) / 1000 ? d : Infinity;
+      const unseen = (now - t.lastSeen) / 1000;
+      return d <= GATE + GATE_PER_SECOND * unseen ? d + AGE_COST * unseen : Infinity;
     }));
     const match = assign(cost);
     return centres.map((centre, i) => {
