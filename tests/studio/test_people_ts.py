@@ -70,6 +70,14 @@ def test_the_main_person_drives_the_pages_channel_while_in_view(bundle):
     assert out[3]["sent"] == [{"person": 1, "seq": 1, "tracked": 20}] and out[3]["user"] == ["c7p1", "c7"]
 
 
+def test_one_person_reported_twice_is_one_person(bundle):
+    # the landmarker's duplicate of the person on the left, a hair off: not a third person, no new id
+    out = run(bundle, [(0.0, [[0.3, 0.6], [0.7, 0.6]]), (100.0, [[0.3, 0.6], [0.7, 0.6], [0.302, 0.61]]),
+                       (200.0, [[0.301, 0.6], [0.7, 0.6]])])
+    assert [sorted(o["ids"]) for o in out] == [[1, 2], [1, 2], [1, 2]]
+    assert out[1]["ids"] == out[0]["ids"] == out[2]["ids"]
+
+
 def test_a_person_keeps_their_current_track_over_an_older_one_nearby(bundle):
     # a jump opened a second track; 2 s on, the person stands a little nearer the old one than their own
     out = run(bundle, [(0.0, [[0.3, 0.6]]), (100.0, [[0.5, 0.6]]), (2000.0, [[0.5, 0.6]]), (2100.0, [[0.38, 0.6]])])

@@ -5,7 +5,7 @@
 // release apply to them all, so two people in one view can carry one horse through a joint map.
 import type { Detection } from '../capture/detection';
 import { KinectMapper, type KinectFrame } from '../capture/KinectMapper';
-import { PersonTracks } from '../capture/PersonTracks';
+import { PersonTracks, distinctPoses } from '../capture/PersonTracks';
 
 export interface PersonFrame {
   id: number;
@@ -28,7 +28,8 @@ export class People {
 
   /** Ids and Kinect frames of the people in `d`, in its order; the frames of all but the main one are sent. */
   update(d: Detection): PersonFrame[] {
-    const ids = this.tracks.update(d.poses, d.width / d.height, d.t);
+    const poses = distinctPoses(d.poses, d.width / d.height);
+    const ids = this.tracks.update(poses, d.width / d.height, d.t);
     this.ids = [...ids].sort((a, b) => a - b);
     if (this.ids.length && (this.main === null || !this.ids.includes(this.main))) this.main = this.ids[0];
     for (const id of this.mappers.keys()) {
@@ -36,7 +37,7 @@ export class People {
     }
     const t = performance.timeOrigin + d.t; // the capture time, on the server's clock (ms since the epoch)
     const out: PersonFrame[] = [];
-    d.poses.forEach((pose, i) => {
+    poses.forEach((pose, i) => {
       const id = ids[i];
       let mapper = this.mappers.get(id);
       if (!mapper) { mapper = new KinectMapper(d.width / d.height); this.mappers.set(id, mapper); }
