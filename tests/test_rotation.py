@@ -9,8 +9,8 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 import kinetre.rotation
-from kinetre.rotation import (axis_rotations, matrix_quaternions, minimal_rotations, quaternion_matrices, slerp,
-                              up_rotation)
+from kinetre.rotation import (axis_rotations, matrix_quaternions, minimal_rotation_into, minimal_rotations,
+                              quaternion_matrices, slerp, up_rotation)
 
 
 def test_docstring_examples():
@@ -58,3 +58,18 @@ def test_axis_and_up_rotations_are_proper():
         turn = up_rotation(up)
         np.testing.assert_allclose(turn @ up, [0, 1, 0], atol=1e-12)
         assert np.linalg.det(turn) == pytest.approx(1.0)
+
+
+def test_the_compiled_minimal_rotation_maps_and_handles_opposites_like_the_array_one():
+    rng = np.random.default_rng(0)
+    a = rng.standard_normal((50, 3))
+    b = rng.standard_normal((50, 3))
+    a /= np.linalg.norm(a, axis=1)[:, None]
+    b /= np.linalg.norm(b, axis=1)[:, None]
+    u, v = np.vstack([a, a[:1], a[1:2]]), np.vstack([b, -a[:1], a[1:2]])
+    r = np.empty((len(u), 3, 3))
+    for i in range(len(u)):
+        minimal_rotation_into(u[i], v[i], r[i])
+    assert np.allclose(r, minimal_rotations(u, v))
+    assert np.allclose(np.einsum("nij,nj->ni", r, u), v)
+    assert np.allclose(np.linalg.det(r), 1.0)

@@ -5,6 +5,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from .jit import njit
+
 
 def up_rotation(up: np.ndarray) -> np.ndarray:
     """(3, 3) rotation taking the signed coordinate axis nearest `up` to +Y (identity for +Y).
@@ -113,6 +115,38 @@ def minimal_rotations(u: np.ndarray, v: np.ndarray) -> np.ndarray:
         perp /= np.linalg.norm(perp, axis=1, keepdims=True)
         rot[flip] = 2 * np.einsum("fi,fj->fij", perp, perp) - np.eye(3)
     return rot.reshape(shape + (3, 3))
+
+
+@njit(cache=True)
+def minimal_rotation_into(a, b, out):
+    """`minimal_rotations` for one pair of unit vectors a, b into out (3, 3), for compiled per-bone loops
+    (scalar arithmetic: there small temporary arrays cost more than the maths)."""
+    v0 = a[1] * b[2] - a[2] * b[1]
+    v1 = a[2] * b[0] - a[0] * b[2]
+    v2 = a[0] * b[1] - a[1] * b[0]
+    c = a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+    s2 = v0 * v0 + v1 * v1 + v2 * v2
+    if c < -1 + 1e-12 and s2 <= 1e-24:  # opposite: a half turn about an axis perpendicular to a
+        h0, h1 = (1.0, 0.0) if abs(a[0]) < 0.9 else (0.0, 1.0)
+        u0, u1, u2 = -a[2] * h1, a[2] * h0, a[0] * h1 - a[1] * h0  # a × (h0, h1, 0)
+        n = np.sqrt(u0 * u0 + u1 * u1 + u2 * u2)
+        u = (u0 / n, u1 / n, u2 / n)
+        for i in range(3):
+            for j in range(3):
+                out[i, j] = 2.0 * u[i] * u[j] - (1.0 if i == j else 0.0)
+        return
+    f = (1 - c) / s2 if s2 > 1e-24 else 0.5
+    # I + [v]× + f [v]×², with [v]×² = v vᵀ − s2 I
+    v = (v0, v1, v2)
+    for i in range(3):
+        for j in range(3):
+            out[i, j] = f * v[i] * v[j] + ((1.0 - f * s2) if i == j else 0.0)
+    out[0, 1] -= v2
+    out[0, 2] += v1
+    out[1, 0] += v2
+    out[1, 2] -= v0
+    out[2, 0] -= v1
+    out[2, 1] += v0
 
 
 def rotation_part(m: np.ndarray) -> np.ndarray:

@@ -5,7 +5,7 @@ from scipy.spatial.transform import Rotation
 
 import kinetre
 from kinetre.errors import AttachError
-from kinetre.skeleton.attach import bone_samples, minimal_rotation
+from kinetre.skeleton.attach import bone_samples
 from kinetre.skeleton.models import KINECT20, Skeleton
 from synthetic import tpose
 
@@ -18,17 +18,6 @@ def test_bone_samples_on_cylinder_with_outward_normals():
     assert np.allclose(np.linalg.norm(radial, axis=1), 0.04)
     assert np.allclose(radial / 0.04, n)
     assert len(np.unique(np.round(p[:, 1], 6))) == 4  # four rings along the bone
-
-
-def test_minimal_rotation_maps_and_handles_opposites():
-    rng = np.random.default_rng(0)
-    a = rng.standard_normal((50, 3))
-    b = rng.standard_normal((50, 3))
-    a /= np.linalg.norm(a, axis=1)[:, None]
-    b /= np.linalg.norm(b, axis=1)[:, None]
-    r = minimal_rotation(np.vstack([a, a[:1]]), np.vstack([b, -a[:1]]))
-    assert np.allclose(np.einsum("nij,nj->ni", r, np.vstack([a, a[:1]])), np.vstack([b, -a[:1]]))
-    assert np.allclose(np.linalg.det(r), 1.0)
 
 
 def test_tpose_inside_body_attaches_every_joint(body_graph):

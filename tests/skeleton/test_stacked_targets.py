@@ -6,7 +6,8 @@ import pytest
 
 import kinetre
 from kinetre.motion.bvh import load_bvh
-from kinetre.skeleton.attach import bone_rotations, constraint_targets, minimal_rotation
+from kinetre.rotation import minimal_rotations as minimal_rotation
+from kinetre.skeleton.attach import bone_rotations, constraint_targets
 from kinetre.skeleton.models import Skeleton
 from synthetic import capsule_body
 

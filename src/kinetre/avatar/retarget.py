@@ -32,7 +32,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..jit import njit
-from ..rotation import minimal_rotations
+from ..rotation import minimal_rotation_into, minimal_rotations
 from ..skeleton.models import KINECT20
 from .bonemap import BoneMap
 from .load import Avatar
@@ -263,23 +263,10 @@ def _mover(plan) -> int:
 
 @njit(cache=True)
 def _min_rotation(u, v):
-    """Smallest rotation turning direction u onto v (Rodrigues); half a turn about a perpendicular axis
-    when they are opposite."""
-    u = u / max(np.sqrt(u @ u), 1e-12)
-    v = v / max(np.sqrt(v @ v), 1e-12)
-    axis = np.cross(u, v)
-    s2 = axis @ axis
-    c = u @ v
-    if s2 <= 1e-24:
-        if c > 0:
-            return np.eye(3)
-        perp = np.cross(u, np.array([1.0, 0.0, 0.0]))
-        if np.sqrt(perp @ perp) < 1e-6:
-            perp = np.cross(u, np.array([0.0, 1.0, 0.0]))
-        perp /= np.sqrt(perp @ perp)
-        return 2.0 * np.outer(perp, perp) - np.eye(3)
-    k = _skew(axis)
-    return np.eye(3) + k + ((1.0 - c) / s2) * _mm(k, k)
+    """Smallest rotation turning direction u onto v (any length)."""
+    out = np.empty((3, 3))
+    minimal_rotation_into(u / max(np.sqrt(u @ u), 1e-12), v / max(np.sqrt(v @ v), 1e-12), out)
+    return out
 
 
 @njit(cache=True)

@@ -16,6 +16,7 @@ from scipy.spatial import cKDTree
 from ..deform.constraints import PointConstraints
 from ..graph.graph import DeformationGraph
 from ..jit import njit
+from ..rotation import minimal_rotation_into
 from .models import Skeleton
 
 RINGS = 4
@@ -279,7 +280,7 @@ def _bone_rotations(bind, pos, tracked, bones, reference, parent_bone):
         ok1[b] = ok and tracked[p] and tracked[c]
         if not ok1[b]:
             u1[b] = u0[b]
-        _minimal_rotation_into(u0[b], u1[b], rot[b])
+        minimal_rotation_into(u0[b], u1[b], rot[b])
     r0 = np.empty(3)
     r1 = np.empty(3)
     w0 = np.empty(3)
@@ -310,21 +311,11 @@ def _bone_rotations(bind, pos, tracked, bones, reference, parent_bone):
             continue
         for i in range(3):
             turned[i] = rot[pb, i, 0] * u0[b, 0] + rot[pb, i, 1] * u0[b, 1] + rot[pb, i, 2] * u0[b, 2]
-        _minimal_rotation_into(turned, u1[b], m)
+        minimal_rotation_into(turned, u1[b], m)
         for i in range(3):
             for j in range(3):
                 rot[b, i, j] = m[i, 0] * rot[pb, 0, j] + m[i, 1] * rot[pb, 1, j] + m[i, 2] * rot[pb, 2, j]
     return rot
-
-
-def minimal_rotation(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """(…, 3, 3) rotations taking unit vectors a to b by the smallest angle (Rodrigues)."""
-    a, b = np.broadcast_arrays(np.asarray(a, dtype=np.float64), np.asarray(b, dtype=np.float64))
-    flat_a, flat_b = a.reshape(-1, 3), b.reshape(-1, 3)
-    out = np.empty((len(flat_a), 3, 3))
-    for i in range(len(flat_a)):
-        _minimal_rotation_into(flat_a[i], flat_b[i], out[i])
-    return out.reshape(a.shape[:-1] + (3, 3))
 
 
 def framed_rotations(bind: Skeleton, frame: Skeleton, rotations: np.ndarray) -> np.ndarray:
@@ -363,44 +354,12 @@ def _framed_rotations_into(bind, pos, tracked, bones, bind_frames, frames, rot):
         if ok0 and ok1 and tracked[p] and tracked[c]:
             for i in range(3):
                 turned[i] = r[i, 0] * u0[0] + r[i, 1] * u0[1] + r[i, 2] * u0[2]
-            _minimal_rotation_into(turned, u1, m)
+            minimal_rotation_into(turned, u1, m)
             for i in range(3):
                 for j in range(3):
                     rot[b, i, j] = m[i, 0] * r[0, j] + m[i, 1] * r[1, j] + m[i, 2] * r[2, j]
         else:
             rot[b] = r
-
-
-@njit(cache=True)
-def _minimal_rotation_into(a, b, out):
-    """`minimal_rotation` for one pair of unit vectors into out (3, 3) (scalar arithmetic: per frame it runs
-    twice per bone, where small temporary arrays cost more than the maths)."""
-    v0 = a[1] * b[2] - a[2] * b[1]
-    v1 = a[2] * b[0] - a[0] * b[2]
-    v2 = a[0] * b[1] - a[1] * b[0]
-    c = a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
-    s2 = v0 * v0 + v1 * v1 + v2 * v2
-    if c < -1 + 1e-12 and s2 <= 1e-24:  # opposite: a half turn about an axis perpendicular to a
-        h0, h1 = (1.0, 0.0) if abs(a[0]) < 0.9 else (0.0, 1.0)
-        u0, u1, u2 = -a[2] * h1, a[2] * h0, a[0] * h1 - a[1] * h0  # a × (h0, h1, 0)
-        n = np.sqrt(u0 * u0 + u1 * u1 + u2 * u2)
-        u = (u0 / n, u1 / n, u2 / n)
-        for i in range(3):
-            for j in range(3):
-                out[i, j] = 2.0 * u[i] * u[j] - (1.0 if i == j else 0.0)
-        return
-    f = (1 - c) / s2 if s2 > 1e-24 else 0.5
-    # I + [v]× + f [v]×², with [v]×² = v vᵀ − s2 I
-    v = (v0, v1, v2)
-    for i in range(3):
-        for j in range(3):
-            out[i, j] = f * v[i] * v[j] + ((1.0 - f * s2) if i == j else 0.0)
-    out[0, 1] -= v2
-    out[0, 2] += v1
-    out[1, 0] += v2
-    out[1, 2] -= v0
-    out[2, 0] -= v1
-    out[2, 1] += v0
 
 
 @dataclass(frozen=True, eq=False)

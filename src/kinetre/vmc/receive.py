@@ -17,6 +17,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..avatar.normalized import vrm_name
+from ..rotation import quaternion_matrices
 from ..skeleton.humanoid_map import kinect_frames, map_humanoid
 from ..skeleton.models import KINECT20, Skeleton
 
@@ -36,16 +37,10 @@ _ORDER = {name: k for k, name in enumerate(UNITY_PARENTS)}   # parents before ch
 SIGNS = np.array([1.0, -1.0, -1.0, 1.0])  # Unity quaternion <-> right-handed, mirrored in x
 
 
-def quaternion_matrix(q) -> np.ndarray:
-    """(x, y, z, w) -> 3x3 rotation (normalised first; a zero quaternion is the identity)."""
-    x, y, z, w = np.asarray(q, dtype=np.float64)
-    n = x * x + y * y + z * z + w * w
-    if not np.isfinite(n) or n < 1e-12:
-        return np.eye(3)
-    s = 2.0 / n
-    return np.array([[1 - s * (y * y + z * z), s * (x * y - z * w), s * (x * z + y * w)],
-                     [s * (x * y + z * w), 1 - s * (x * x + z * z), s * (y * z - x * w)],
-                     [s * (x * z - y * w), s * (y * z + x * w), 1 - s * (x * x + y * y)]])
+def _rotation(q) -> np.ndarray:
+    """A sent quaternion (x, y, z, w) as a 3x3 rotation; a zero or non-finite one is the identity."""
+    q = np.asarray(q, dtype=np.float64)
+    return quaternion_matrices(q) if np.isfinite(q).all() and q @ q > 1e-12 else np.eye(3)
 
 
 def _parent_sent(name: str, sent) -> str | None:
@@ -63,11 +58,11 @@ def world_positions(bones: dict, root=None) -> tuple[tuple[str, ...], list[int],
     if root is None:
         base_r, base_t = np.eye(3), np.zeros(3)
     else:
-        base_r, base_t = quaternion_matrix(np.asarray(root[1]) * SIGNS), np.asarray(root[0]) * mirror
+        base_r, base_t = _rotation(np.asarray(root[1]) * SIGNS), np.asarray(root[0]) * mirror
     rot, pos, parents = {}, {}, []
     for name in names:
         p_local, q_local = bones[name]
-        r = quaternion_matrix(np.asarray(q_local) * SIGNS)
+        r = _rotation(np.asarray(q_local) * SIGNS)
         t = np.asarray(p_local, dtype=np.float64) * mirror
         parent = _parent_sent(name, bones)
         pr, pt = (base_r, base_t) if parent is None else (rot[parent], pos[parent])
