@@ -4,6 +4,7 @@
 // it is idle, so the page never waits on it.
 import type { Camera } from '../capture/Camera';
 import type { Detection } from '../capture/detection';
+import { personHands, type PersonHand } from '../capture/hands';
 import { LandmarkTracker } from '../capture/LandmarkTracker';
 import type { Vec3 } from '../net/protocol';
 import { People } from './People';
@@ -13,6 +14,8 @@ export interface UserFrame {
   positions: (Vec3 | null)[];
   tracked: boolean[];
   t: number; // when the camera frame was captured (ms since the epoch): latency counts from it
+  hands: PersonHand[]; // [left, right], null when not seen
+  face: Record<string, number> | null; // blendshape weights of the face in view (one face is looked for)
 }
 
 /** What the capture loop tells the page. */
@@ -79,7 +82,8 @@ export class CaptureLoop {
     if (main) {
       this.trackedJoints = main.frame.tracked.filter(Boolean).length;
       this.trackingLost = false;
-      this.host.user({ ...main.frame, t: performance.timeOrigin + d.t });
+      const hands = personHands(main.pose, main.frame, d.hands, d.width / d.height);
+      this.host.user({ ...main.frame, t: performance.timeOrigin + d.t, hands, face: d.faces[0]?.scores ?? null });
     } else {
       this.trackingLost = true;
       this.trackedJoints = 0;

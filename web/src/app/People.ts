@@ -3,7 +3,7 @@
 // "main" person, drives the page's own channel (the user the page's buttons and voice talk about); every
 // other person is sent with a "person" field and becomes the server user `<client>p<id>`. Possess and
 // release apply to them all, so two people in one view can carry one horse through a joint map.
-import type { Detection } from '../capture/detection';
+import type { Detection, PoseLandmarks } from '../capture/detection';
 import { KinectMapper, type KinectFrame } from '../capture/KinectMapper';
 import { PersonTracks, distinctPoses } from '../capture/PersonTracks';
 
@@ -11,6 +11,7 @@ export interface PersonFrame {
   id: number;
   main: boolean; // sent on the page's own channel
   frame: KinectFrame;
+  pose: PoseLandmarks; // the landmarks it was mapped from
 }
 
 export class People {
@@ -49,7 +50,7 @@ export class People {
         this.seqs.set(id, seq);
         this.sendFrame({ type: 'skeleton', person: id, seq, t, model: 'kinect20', positions: frame.positions, tracked: frame.tracked });
       }
-      out.push({ id, main, frame });
+      out.push({ id, main, frame, pose });
     });
     for (const id of this.tracks.ids) if (!ids.includes(id)) this.frames.delete(id);
     return out;

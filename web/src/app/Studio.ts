@@ -223,7 +223,7 @@ export class Studio {
       this.me.group.visible = true;
       this.me.update(frame.positions, this.preview?.attachableJoints ?? []);
       this.sendFrame(frame.positions, frame.tracked, frame.t);
-      this.avatars.drive(frame.positions, frame.tracked, 'me');
+      this.avatars.drive(frame.positions, frame.tracked, 'me', frame);
     } else {
       // nobody in view: an all-untracked frame makes the server hold the last pose
       this.sendFrame(new Array(JOINT_COUNT).fill(null), new Array(JOINT_COUNT).fill(false), Date.now());

@@ -8,7 +8,9 @@ import * as THREE from 'three';
 import { GLTFLoader } from 'three/examples/jsm/loaders/GLTFLoader.js';
 import type { Vec3 } from '../net/protocol';
 import { AvatarMapEditor } from './AvatarMapEditor';
-import { Retargeter, type RetargetPlan } from './retarget';
+import { applyExpressions, expressionWeights, mapExpressions, type ExpressionMap, type MorphHolder } from './Expressions';
+import { FingerRetargeter, fingerChains, type Hand } from './Fingers';
+import { add, mv, Retargeter, type RetargetPlan, type V3 } from './retarget';
 
 export const AVATAR_EXTENSIONS = ['.glb', '.gltf', '.vrm'];
 const HEIGHT = 1.7; // metres the avatar is shown at
@@ -30,6 +32,12 @@ export interface AvatarPayload {
 
 interface Recorded { positions: (Vec3 | null)[]; tracked: boolean[] }
 
+/** What drives the avatar besides the body: hands [left, right] and face blendshapes, when seen. */
+export interface HandsAndFace {
+  hands?: Hand[];
+  face?: Record<string, number> | null;
+}
+
 export class AvatarStage {
   readonly holder = new THREE.Group();
   payload: AvatarPayload | null = null;
@@ -40,6 +48,11 @@ export class AvatarStage {
   private bones: THREE.Object3D[] = [];
   private meshes: THREE.SkinnedMesh[] = [];
   private retargeter: Retargeter | null = null;
+  private fingers: FingerRetargeter | null = null;
+  private expressions: ExpressionMap | null = null;
+  private morphMeshes = new Map<number, MorphHolder[]>();
+  private vrmBones: Record<string, number> = {};
+  private tipEnds: (V3 | null)[] = [];
   private model: THREE.Object3D | null = null;
   private lastDriven = 0;
   private recording: Recorded[] | null = null;
@@ -103,6 +116,7 @@ export class AvatarStage {
         this.meshes.push(m);
       }
     });
+    this.readHandsAndFace(gltf.parser.json, gltf.scene, (o) => gltf.parser.associations.get(o)?.meshes);
     this.holder.add(gltf.scene);
     this.place();
     this.setPlan(payload.plan);
@@ -110,8 +124,56 @@ export class AvatarStage {
     (this.section.querySelector('#avatar-name') as HTMLElement).textContent = `avatar: ${payload.name}`;
   }
 
+  /** The avatar's VRM finger bones, its end bones' tips and the meshes its expressions move (at load: rest pose). */
+  private readHandsAndFace(json: Record<string, unknown>, scene: THREE.Object3D,
+    meshOf: (o: THREE.Object3D) => number | undefined): void {
+    const nodeJoint = new Map((this.payload?.nodes ?? []).map((n, j) => [n, j]));
+    const ext = (json.extensions ?? {}) as {
+      VRMC_vrm?: { humanoid?: { humanBones?: Record<string, { node?: number }> } };
+      VRM?: { humanoid?: { humanBones?: { bone?: string; node?: number }[] } };
+    };
+    this.vrmBones = {};
+    const human = ext.VRMC_vrm?.humanoid?.humanBones;
+    if (human && typeof human === 'object') {
+      for (const [name, b] of Object.entries(human)) {
+        const j = nodeJoint.get(b?.node ?? -1);
+        if (j !== undefined) this.vrmBones[name] = j;
+      }
+    }
+    for (const b of ext.VRM?.humanoid?.humanBones ?? []) {
+      const j = nodeJoint.get(b.node ?? -1);
+      if (b.bone && j !== undefined && !(b.bone in this.vrmBones)) this.vrmBones[b.bone] = j;
+    }
+    // a tip bone points at its first child node, which follows it rigidly: offset = rest⁻¹ · child rest
+    scene.updateMatrixWorld(true);
+    this.tipEnds = this.bones.map((bone) => {
+      const child = bone.children[0];
+      if (!child) return null;
+      const offset = new THREE.Matrix4().copy(bone.matrixWorld).invert().multiply(child.matrixWorld);
+      return [offset.elements[12], offset.elements[13], offset.elements[14]];
+    });
+    this.expressions = mapExpressions(json as Parameters<typeof mapExpressions>[0]);
+    this.morphMeshes = new Map();
+    scene.traverse((o) => {
+      const m = meshOf(o);
+      const holder = o as unknown as MorphHolder;
+      if (m !== undefined && holder.morphTargetInfluences) {
+        this.morphMeshes.set(m, [...(this.morphMeshes.get(m) ?? []), holder]);
+      }
+    });
+  }
+
   private setPlan(plan: RetargetPlan | null): void {
     this.retargeter = plan ? new Retargeter(plan) : null;
+    this.fingers = null;
+    if (plan && this.payload) {
+      const chains = fingerChains(this.payload.joints, plan.real_parents, this.vrmBones, this.payload.map);
+      const fingers = new FingerRetargeter(plan, chains, (j) => {
+        const o = this.tipEnds[j];
+        return o ? add(mv(plan.bind_linear[j], o), plan.bind_positions[j]) : null;
+      });
+      this.fingers = fingers.active ? fingers : null;
+    }
     if (plan) {
       // show it facing the camera: undo the plan's turn from Kinetre's facing (+Z) to the avatar's
       this.holder.rotation.y = -Math.atan2(plan.align[0][2], plan.align[0][0]);
@@ -141,14 +203,16 @@ export class AvatarStage {
   }
 
   /** One skeleton frame from `client` ('me' for this page's camera, which always wins). */
-  drive(positions: (Vec3 | null)[], tracked: boolean[], client: string): void {
+  drive(positions: (Vec3 | null)[], tracked: boolean[], client: string, extra: HandsAndFace = {}): void {
     if (!this.retargeter) return;
     const now = performance.now();
     if (this.source !== client && client !== 'me' && this.source !== null && now - this.lastDriven < STALE_MS) return;
-    if (this.source !== client) this.retargeter.reset();
+    if (this.source !== client) { this.retargeter.reset(); this.fingers?.reset(); }
     this.source = client;
     this.lastDriven = now;
-    const frame = this.retargeter.frame(positions, tracked);
+    const body = this.retargeter.frame(positions, tracked);
+    const frame = this.fingers ? this.fingers.frame(body, extra.hands ?? [null, null]) : body; // unseen: held
+    if (extra.face && this.expressions) applyExpressions(expressionWeights(this.expressions, extra.face), this.morphMeshes);
     const m = new THREE.Matrix4();
     frame.local.forEach((l, j) => {
       m.set(l[0][0], l[0][1], l[0][2], l[0][3], l[1][0], l[1][1], l[1][2], l[1][3],
@@ -226,6 +290,9 @@ export class AvatarStage {
     this.bones = [];
     this.meshes = [];
     this.retargeter = null;
+    this.fingers = null;
+    this.expressions = null;
+    this.morphMeshes = new Map();
     this.source = null;
   }
 
@@ -263,6 +330,7 @@ export class AvatarStage {
       id: this.payload?.id ?? null, name: this.payload?.name ?? null, missing: this.payload?.missing ?? [],
       ready: Boolean(this.retargeter), source: this.source, driven: this.driven, editor: Boolean(this.editor),
       recording: this.recording !== null, lastError: this.lastError, vertices,
+      fingers: Boolean(this.fingers), expressions: this.expressions?.how ?? null,
     };
   }
 }

@@ -35,21 +35,22 @@ export interface RetargetPlan {
 export interface AvatarFrame {
   world: M4[]; // per joint
   local: M4[]; // per joint, relative to its glTF parent node
+  rotations: M3[]; // per joint, its world rotation from the bind pose (q of Algorithm 1)
 }
 
 const K = { HipCenter: 0, ShoulderCenter: 2, ShoulderLeft: 4, ShoulderRight: 8, HipLeft: 12, KneeLeft: 13,
   AnkleLeft: 14, HipRight: 16, KneeRight: 17, AnkleRight: 18 };
 
-const eye3 = (): M3 => [[1, 0, 0], [0, 1, 0], [0, 0, 1]];
-const sub = (a: V3, b: V3): V3 => [a[0] - b[0], a[1] - b[1], a[2] - b[2]];
-const add = (a: V3, b: V3): V3 => [a[0] + b[0], a[1] + b[1], a[2] + b[2]];
-const scale = (a: V3, s: number): V3 => [a[0] * s, a[1] * s, a[2] * s];
-const dot = (a: V3, b: V3): number => a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
-const cross = (a: V3, b: V3): V3 => [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]];
-const norm = (a: V3): number => Math.sqrt(dot(a, a));
-const transpose = (a: number[][]): number[][] => a[0].map((_, j) => a.map((row) => row[j]));
+export const eye3 = (): M3 => [[1, 0, 0], [0, 1, 0], [0, 0, 1]];
+export const sub = (a: V3, b: V3): V3 => [a[0] - b[0], a[1] - b[1], a[2] - b[2]];
+export const add = (a: V3, b: V3): V3 => [a[0] + b[0], a[1] + b[1], a[2] + b[2]];
+export const scale = (a: V3, s: number): V3 => [a[0] * s, a[1] * s, a[2] * s];
+export const dot = (a: V3, b: V3): number => a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
+export const cross = (a: V3, b: V3): V3 => [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]];
+export const norm = (a: V3): number => Math.sqrt(dot(a, a));
+export const transpose = (a: number[][]): number[][] => a[0].map((_, j) => a.map((row) => row[j]));
 
-function mm(a: number[][], b: number[][]): number[][] {
+export function mm(a: number[][], b: number[][]): number[][] {
   const out = a.map(() => new Array(b[0].length).fill(0));
   for (let i = 0; i < a.length; i++) {
     for (let k = 0; k < b.length; k++) {
@@ -60,7 +61,7 @@ function mm(a: number[][], b: number[][]): number[][] {
   return out;
 }
 
-function mv(a: number[][], v: V3): V3 {
+export function mv(a: number[][], v: V3): V3 {
   return a.map((row) => row[0] * v[0] + row[1] * v[1] + row[2] * v[2]);
 }
 
@@ -113,7 +114,7 @@ function twisted(w: M3, restSide: V3, bone: V3, side: V3): M3 {
   return mm(combine(skew(axis), Math.sin(angle), 1 - Math.cos(angle)), w);
 }
 
-function affineInverse(m: M4): M4 {
+export function affineInverse(m: M4): M4 {
   const a = m;
   const inv = [
     [a[1][1] * a[2][2] - a[1][2] * a[2][1], a[0][2] * a[2][1] - a[0][1] * a[2][2], a[0][1] * a[1][2] - a[0][2] * a[1][1]],
@@ -217,6 +218,6 @@ export class Retargeter {
       const above = rp < 0 ? plan.fixed_parent[j] : mm(world[rp], plan.fixed_parent[j]);
       return mm(affineInverse(above), m);
     });
-    return { world, local };
+    return { world, local, rotations: rot };
   }
 }
