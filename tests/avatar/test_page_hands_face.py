@@ -26,6 +26,7 @@ from avatar.synthetic import MORPHS, write_rigged_avatar
 ROOT = Path(__file__).resolve().parents[2]
 ESBUILD = ROOT / "web" / "node_modules" / ".bin" / "esbuild"
 RUNNER = Path(__file__).resolve().parent / "node" / "hands_face_ts.mjs"
+HANDS_RUNNER = Path(__file__).resolve().parent / "node" / "person_hands_ts.mjs"
 FRAMES = 6
 
 
@@ -33,9 +34,10 @@ FRAMES = 6
 def bundle(tmp_path_factory):
     assert ESBUILD.exists(), "web/node_modules is missing: npm ci in web/ (make setup does)"
     out = tmp_path_factory.mktemp("ts")
-    src = ROOT / "web" / "src" / "avatar"
-    subprocess.run([str(ESBUILD), *(str(src / f) for f in ("retarget.ts", "Fingers.ts", "Expressions.ts")),
-                    "--bundle", "--format=esm", f"--outdir={out}", "--log-level=warning"], check=True, timeout=120)
+    src = ROOT / "web" / "src"
+    files = ("avatar/retarget.ts", "avatar/Fingers.ts", "avatar/Expressions.ts", "capture/hands.ts")
+    subprocess.run([str(ESBUILD), *(str(src / f) for f in files), "--bundle", "--format=esm", f"--outdir={out}",
+                    "--entry-names=[name]", "--log-level=warning"], check=True, timeout=120)
     return out
 
 
@@ -151,3 +153,36 @@ def test_page_vrm_expressions_match_python(bundle, tmp_path, walk, version):
     np.testing.assert_allclose(np.array([f["0"] for f in page["morphs"]]), expected, atol=1e-12)
     smile = faces[:, [BLENDSHAPES.index("mouthSmileLeft"), BLENDSHAPES.index("mouthSmileRight")]].mean(axis=1)
     np.testing.assert_allclose(expected[:, 2], np.clip(faces[:, BLENDSHAPES.index("jawOpen")] + 0.5 * smile, 0, 1))
+
+
+def test_page_gives_each_wrist_the_hand_that_starts_at_it(bundle):
+    """Hands go to the wrist their landmark 0 is at, whatever MediaPipe's handedness says; a hand far from
+    both wrists is nobody's; world landmarks are flipped to +Y up, +Z to the camera, at the body's wrist."""
+    rng = np.random.default_rng(7)
+    image = [{"x": 0.5, "y": 0.5, "z": 0.0, "visibility": 1.0} for _ in range(33)]
+    image[15] = {"x": 0.3, "y": 0.6, "z": 0.0}                   # the person's left wrist
+    image[16] = {"x": 0.7, "y": 0.6, "z": 0.0}
+    positions = [[0.0, 1.0, 0.0]] * 20
+    positions[KINECT20.index("WristLeft")] = [0.4, 1.1, 0.2]
+    positions[KINECT20.index("WristRight")] = [-0.4, 1.1, 0.2]
+    frame = {"positions": positions, "tracked": [True] * 20}
+
+    def hand(x, y, label):
+        world = rng.normal(scale=0.04, size=(21, 3))
+        shape = rng.normal(scale=0.02, size=(21, 2)) + [0.0, -0.05]
+        shape[0] = 0.0
+        return {"handedness": label, "world": [dict(zip("xyz", p)) for p in world.tolist()],
+                "image": [{"x": x + a, "y": y + b, "z": 0.0} for a, b in shape.tolist()]}, world
+    right, right_world = hand(0.705, 0.59, "Left")
+    left, left_world = hand(0.29, 0.61, "Left")
+    far, _ = hand(0.5, 0.05, "Right")
+    cases = [{"pose": {"image": image, "world": image}, "frame": frame, "hands": h, "aspect": 16 / 9}
+             for h in ([far, right, left], [far])]
+    run = subprocess.run(["node", str(HANDS_RUNNER), str(bundle)], input=json.dumps(cases), capture_output=True,
+                         text=True, timeout=120, check=True)
+    (got_left, got_right), alone = json.loads(run.stdout)
+    flip = np.diag([1.0, -1.0, -1.0])
+    for got, world, wrist in ((got_left, left_world, "WristLeft"), (got_right, right_world, "WristRight")):
+        np.testing.assert_allclose(np.array(got), (world - world[0]) @ flip + positions[KINECT20.index(wrist)],
+                                   atol=1e-12)
+    assert alone == [None, None]
