@@ -107,6 +107,27 @@ def test_animate_to_a_take_places_the_skeleton_on_the_mesh(capsys, tmp_path, dat
     np.testing.assert_allclose(mid[[0, 2]], (0.5 * (lo + hi))[[0, 2]], atol=1e-9)
 
 
+def test_animate_stands_a_z_up_mesh_and_says_why(capsys, tmp_path, data_dir, spot):
+    mesh = kinetre.load_mesh(spot)
+    lying = tmp_path / "lying.obj"
+    trimesh.Trimesh(mesh.vertices @ np.array([[1.0, 0, 0], [0, 0, -1.0], [0, 1.0, 0]]).T, mesh.faces,
+                    process=False).export(lying)  # a quarter turn about +X: stored +Z up
+    walk = data_dir / "bvh" / "cmu_12_01_walk.bvh"
+    heights = {}
+    for up, said in (("auto", "up: stood up: +Z up, it would topple with +Y up"), ("y", "up: +Y up, as asked")):
+        out_path = tmp_path / f"{up}.kinetre.jsonl"
+        code, out, err = run(capsys, "animate", lying, "--motion", walk, "--up", up, "--nodes", 48,
+                             "--max-frames", 2, "-o", out_path)
+        assert code == 0, err
+        assert said in out.splitlines()
+        heights[up] = read_stream(out_path).frame(0).height
+    lo, hi = mesh.bounds
+    assert heights["auto"] == pytest.approx(hi[1] - lo[1], rel=1e-6)  # sized to the standing cow
+    assert heights["y"] == pytest.approx(hi[2] - lo[2], rel=1e-6)     # to the lying one, as asked
+    assert "--up must be one of y, z, auto, got 'x'" in bad(capsys, "animate", lying, "--motion", walk,
+                                                            "--up", "x", "-o", tmp_path / "x.glb")
+
+
 def test_animate_glb(capsys, tmp_path, data_dir, spot):
     out_path = tmp_path / "spot.glb"
     code, out, err = run(capsys, "animate", spot, "--motion", data_dir / "bvh" / "mixamo_rig_freebvh.bvh",

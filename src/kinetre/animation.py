@@ -13,6 +13,7 @@ from __future__ import annotations
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 from .deform.pose import GraphPose
 from .errors import BadSettingsError
@@ -23,8 +24,12 @@ from .motion.take import Take
 from .skeleton.rig import Rig
 from .stopwatch import Stopwatch
 
+if TYPE_CHECKING:
+    from .mesh.upright import Upright
+
 FITS = (None, "mesh", "height", "length")
 SOLVERS = (None, "pcg", "local_global", "exact")
+UPS = ("auto", "y", "z")
 
 
 @dataclass(frozen=True)
@@ -42,6 +47,8 @@ class AnimateSettings:
     yaw : degrees about +Y the skeleton is turned (people: from the mesh front +Z; other skeletons: added
         to the facing found from the shapes); flip : turn it round
     solve : solve every frame and skin the graph (False: only place the skeleton, for skeleton outputs)
+    up : the mesh's up axis: "auto" (glTF/VRM are +Y up by spec; other files are turned +Z up only when
+        +Y up would topple and +Z up would rest, `kinetre.mesh.upright`), "y" (as stored) or "z"
     """
 
     nodes: int = 256
@@ -53,6 +60,7 @@ class AnimateSettings:
     yaw: float | None = None
     flip: bool = False
     solve: bool = True
+    up: str = "auto"
 
 
 @dataclass(frozen=True)
@@ -61,7 +69,7 @@ class Animation:
 
     Attributes
     ----------
-    mesh : the mesh in the output's units (resized to the skeleton with `fit="mesh"`)
+    mesh : the mesh stood +Y up, in the output's units (resized to the skeleton with `fit="mesh"`)
     graph : its deformation graph with skinning weights (without them when nothing was solved)
     poses : one GraphPose per take frame, in the output's units (empty when nothing was solved)
     take : the placed skeleton in the output's units, one frame per pose
@@ -70,6 +78,8 @@ class Animation:
     shape_fit : the shapes' fit for a non-human source (None for a person)
     notes : warnings in words about a poor match
     seconds : wall and CPU seconds per stage ("graph_s", "graph_cpu", "attach_s", ..., "weights_cpu")
+    upright : the up axis the mesh was taken with and why (`mesh` is the input turned by
+        `kinetre.mesh.upright.rotation_to_y_up(upright.up)` before any resizing)
     """
 
     mesh: Mesh
@@ -81,6 +91,7 @@ class Animation:
     shape_fit: object | None
     notes: tuple[str, ...]
     seconds: dict
+    upright: Upright
 
 
 def animate(mesh: Mesh, take: Take, settings: AnimateSettings = AnimateSettings(),
@@ -90,7 +101,7 @@ def animate(mesh: Mesh, take: Take, settings: AnimateSettings = AnimateSettings(
 
     Parameters
     ----------
-    mesh : Mesh, +Y up (any units)
+    mesh : Mesh (any units); stood +Y up first as `settings.up` says, and driven and returned that way
     take : Take, +Y up (a Kinect-20 person is fitted by height; any other skeleton from the two shapes)
     settings : AnimateSettings
     on_frame : called with each frame's index once it is solved (progress)
@@ -105,6 +116,7 @@ def animate(mesh: Mesh, take: Take, settings: AnimateSettings = AnimateSettings(
     """
     import kinetre
     from .deform.solver import SolverSettings
+    from .mesh.upright import turned
     from .motion.fit import fit_take
     from .motion.in_place import in_place
 
@@ -117,10 +129,14 @@ def animate(mesh: Mesh, take: Take, settings: AnimateSettings = AnimateSettings(
         raise BadSettingsError(f"solver must be one of pcg, local_global, exact or None, got {s.solver!r}")
     if not -len(take) <= s.bind_frame < len(take):
         raise BadSettingsError(f"--bind-frame {s.bind_frame} is outside the take's {len(take)} frames")
+    if s.up not in UPS:
+        raise BadSettingsError(f"--up must be one of auto, y, z, got {s.up!r}")
     step = on_step or (lambda name: None)
     watch = Stopwatch()
     seconds, lap = watch.seconds, watch.lap
 
+    upright = stand_up(mesh, s.up)
+    mesh = turned(mesh, upright.up)
     graph = kinetre.build_graph(mesh, nodes=s.nodes, seed=s.seed, weights=False)
     # the skinning weights (only a solved animation needs them) are computed on another core meanwhile
     weighing = _weigh_in_background(graph, mesh) if s.solve else None
@@ -169,7 +185,18 @@ def animate(mesh: Mesh, take: Take, settings: AnimateSettings = AnimateSettings(
         graph, seconds["weights_cpu"] = weighing.result()
         seconds["weights_wait_s"] = time.perf_counter() - wait
     graph_out = placement.graph(graph) if fit_mesh else graph
-    return Animation(mesh_out, graph_out, tuple(poses), out_take, placement, rig, shape, notes, seconds)
+    return Animation(mesh_out, graph_out, tuple(poses), out_take, placement, rig, shape, notes, seconds, upright)
+
+
+def stand_up(mesh: Mesh, up: str = "auto") -> Upright:
+    """The up axis to drive `mesh` with: found from its file and shape for "auto", else the one asked."""
+    from .mesh.upright import Upright, find_upright
+
+    if up == "auto":
+        return find_upright(mesh, mesh.source)
+    if up not in ("y", "z"):
+        raise BadSettingsError(f"--up must be one of auto, y, z, got {up!r}")
+    return Upright(up, {}, f"+{up.upper()} up, as asked")
 
 
 def _standing_source(take: Take, mesh: Mesh, s: AnimateSettings) -> Take | None:

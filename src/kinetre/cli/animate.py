@@ -11,6 +11,7 @@ from ..stopwatch import Stopwatch
 from .common import EPILOG, VIDEO_EXTS, UsageError, frame_range, load_motion, output_ext, quiet_mediapipe
 
 ANIMATE_OUTPUTS = (".glb", ".gltf", ".bvh", ".mp4", ".webm", ".kinetre.jsonl")
+UPS = ("y", "z", "auto")
 
 
 def register(sub) -> None:
@@ -50,6 +51,9 @@ def register(sub) -> None:
                    help="degrees about +Y the skeleton is turned (people: from the mesh front +Z; other "
                         "skeletons: added to the facing found from the shapes)")
     p.add_argument("--flip", action="store_true", help="turn the skeleton round (the fit took front for back)")
+    p.add_argument("--up", default="auto", metavar="y|z|auto",
+                   help="the mesh's up axis: auto (default: glTF is +Y up; other files are stood +Z up when +Y up "
+                        "would topple and +Z up rests), y (as stored) or z; the output is written standing, +Y up")
     p.add_argument("--scale", type=float, default=None, help="BVH: metres per file unit (default: guessed)")
     p.add_argument("--own-skeleton", action="store_true",
                    help="BVH/glTF: drive the mesh by the file's own bones, not the Kinect-20 map (unmapped files "
@@ -88,6 +92,8 @@ def _animate(args, stats: dict | None) -> int:
     frames = frame_range(args.frames)
     if args.nodes < 2:
         raise UsageError(f"--nodes must be at least 2, got {args.nodes}")
+    if args.up not in UPS:  # checked here, not by argparse: one line on stderr, before any file is read
+        raise UsageError(f"--up must be one of y, z, auto, got {args.up!r}")
     watch = Stopwatch(stats)
     stats, lap = watch.seconds, watch.lap
     t0 = time.perf_counter()
@@ -129,7 +135,7 @@ def _animate(args, stats: dict | None) -> int:
 
     settings = AnimateSettings(nodes=args.nodes, seed=args.seed, subset=_subset(args.subset),
                                bind_frame=args.bind_frame, solver=args.solver, fit=args.fit, yaw=args.yaw,
-                               flip=args.flip, solve=out_ext not in (".bvh", ".kinetre.jsonl"))
+                               flip=args.flip, solve=out_ext not in (".bvh", ".kinetre.jsonl"), up=args.up)
     with _bar(3, "rigging", args.quiet) as rigging, _bar(len(take), "solving", args.quiet) as solving:
         rigging.unit = "step"
         result = animate(mesh, take, settings, on_frame=lambda i: solving.update(1),
@@ -137,6 +143,7 @@ def _animate(args, stats: dict | None) -> int:
     stats.update(result.seconds)
     watch.restart()
     placement, rig = result.placement, result.rig
+    say(f"up: {result.upright.reason}")
     shape = result.shape_fit
     if shape is not None:
         say(f"fitted from the shapes: front by {shape.front}, turned {shape.turn:.0f} deg, size ratios "
