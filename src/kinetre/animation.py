@@ -47,8 +47,9 @@ class AnimateSettings:
     yaw : degrees about +Y the skeleton is turned (people: from the mesh front +Z; other skeletons: added
         to the facing found from the shapes); flip : turn it round
     solve : solve every frame and skin the graph (False: only place the skeleton, for skeleton outputs)
-    up : the mesh's up axis: "auto" (glTF/VRM are +Y up by spec; other files are turned +Z up only when
-        +Y up would topple and +Z up would rest, `kinetre.mesh.upright`), "y" (as stored) or "z"
+    up : the mesh's up axis: "auto" (+Y up when the source's skeleton stands inside it as stored; else
+        glTF/VRM are +Y up by spec and other meshes are turned +Z up only when +Y up would topple and +Z up
+        would rest, `kinetre.mesh.upright`), "y" (as stored) or "z"
     """
 
     nodes: int = 256
@@ -135,8 +136,14 @@ def animate(mesh: Mesh, take: Take, settings: AnimateSettings = AnimateSettings(
     watch = Stopwatch()
     seconds, lap = watch.seconds, watch.lap
 
-    upright = stand_up(mesh, s.up)
+    # a source skeleton standing inside the mesh as stored says the mesh is +Y up (a take is), whatever its
+    # shape: a figure on rounded feet may topple by the floor test, yet stands
+    if s.up == "auto" and _source_stands_inside(take, mesh, s.bind_frame):
+        upright = _standing_upright()
+    else:
+        upright = stand_up(mesh, s.up)
     mesh = turned(mesh, upright.up)
+    standing = _standing_source(take, mesh, s)
     graph = kinetre.build_graph(mesh, nodes=s.nodes, seed=s.seed, weights=False)
     # the skinning weights (only a solved animation needs them) are computed on another core meanwhile
     weighing = _weigh_in_background(graph, mesh) if s.solve else None
@@ -144,7 +151,6 @@ def animate(mesh: Mesh, take: Take, settings: AnimateSettings = AnimateSettings(
     lap("graph")
     fit_mesh = s.fit == "mesh"
     shape = None
-    standing = _standing_source(take, mesh, s)
     if standing is not None:  # the source already stands inside the mesh: all its bones, where they are
         take, fit_mesh = standing, False
         placement, notes = in_place(mesh), ()
@@ -188,8 +194,14 @@ def animate(mesh: Mesh, take: Take, settings: AnimateSettings = AnimateSettings(
     return Animation(mesh_out, graph_out, tuple(poses), out_take, placement, rig, shape, notes, seconds, upright)
 
 
+def _standing_upright():
+    from .mesh.upright import Upright
+    return Upright("y", {}, "+Y up: the motion's skeleton stands inside it as stored")
+
+
 def stand_up(mesh: Mesh, up: str = "auto") -> Upright:
-    """The up axis to drive `mesh` with: found from its file and shape for "auto", else the one asked."""
+    """The up axis to drive `mesh` with: for "auto", found from the file it was read from (`mesh.source`)
+    and its shape; else the one asked."""
     from .mesh.upright import Upright, find_upright
 
     if up == "auto":
@@ -197,6 +209,13 @@ def stand_up(mesh: Mesh, up: str = "auto") -> Upright:
     if up not in ("y", "z"):
         raise BadSettingsError(f"--up must be one of auto, y, z, got {up!r}")
     return Upright(up, {}, f"+{up.upper()} up, as asked")
+
+
+def _source_stands_inside(take: Take, mesh: Mesh, bind_frame: int) -> bool:
+    """Whether the take's own skeleton (the file's, when it was mapped to Kinect-20) lies inside `mesh`."""
+    from .motion.in_place import stands_inside
+
+    return stands_inside(take.native if take.native is not None else take, mesh, bind_frame)
 
 
 def _standing_source(take: Take, mesh: Mesh, s: AnimateSettings) -> Take | None:
