@@ -57,3 +57,19 @@ def test_up_y_takes_the_file_as_it_is(spot_twice, walk):
     assert kept.take.frame(0).height == pytest.approx(np.ptp(lying.vertices[:, 1]), rel=1e-9)
     with pytest.raises(BadSettingsError, match="--up must be one of auto, y, z, got 'x'"):
         kinetre.animate(lying, walk, kinetre.AnimateSettings(nodes=48, up="x"))
+
+
+def test_a_skeleton_standing_inside_keeps_a_figure_on_rounded_feet_upright():
+    from kinetre.mesh.upright import find_upright
+    from kinetre.motion.take import Take
+    from kinetre.skeleton.models import KINECT20, Skeleton, SkeletonModel
+    from synthetic import capsule_body, tpose
+
+    stick = SkeletonModel("stick", KINECT20.joints, KINECT20.parents)
+    bind = tpose(1.0, (0.0, 0.5, 0.0)).positions
+    take = Take(stick, bind[None], np.ones((1, len(bind)), bool), 30.0, "stick")
+    body = capsule_body(Skeleton(stick, bind, take.tracked[0]), radius=0.03)
+    assert find_upright(body).up == "z"  # by the floor test alone it would lie on its back, arms spread
+    result = kinetre.animate(body, take, kinetre.AnimateSettings(nodes=48, yaw=0.0, solve=False))
+    assert result.upright.up == "y" and "skeleton stands inside" in result.upright.reason
+    np.testing.assert_array_equal(result.mesh.vertices, body.vertices)

@@ -136,12 +136,7 @@ def animate(mesh: Mesh, take: Take, settings: AnimateSettings = AnimateSettings(
     watch = Stopwatch()
     seconds, lap = watch.seconds, watch.lap
 
-    # a source skeleton standing inside the mesh as stored says the mesh is +Y up (a take is), whatever its
-    # shape: a figure on rounded feet may topple by the floor test, yet stands
-    if s.up == "auto" and _source_stands_inside(take, mesh, s.bind_frame):
-        upright = _standing_upright()
-    else:
-        upright = stand_up(mesh, s.up)
+    upright = _upright(mesh, take, s)
     mesh = turned(mesh, upright.up)
     standing = _standing_source(take, mesh, s)
     graph = kinetre.build_graph(mesh, nodes=s.nodes, seed=s.seed, weights=False)
@@ -194,28 +189,19 @@ def animate(mesh: Mesh, take: Take, settings: AnimateSettings = AnimateSettings(
     return Animation(mesh_out, graph_out, tuple(poses), out_take, placement, rig, shape, notes, seconds, upright)
 
 
-def _standing_upright():
-    from .mesh.upright import Upright
-    return Upright("y", {}, "+Y up: the motion's skeleton stands inside it as stored")
-
-
-def stand_up(mesh: Mesh, up: str = "auto") -> Upright:
-    """The up axis to drive `mesh` with: for "auto", found from the file it was read from (`mesh.source`)
-    and its shape; else the one asked."""
+def _upright(mesh: Mesh, take: Take, s: AnimateSettings) -> Upright:
+    """The up axis `mesh` is driven with: the one asked, else found from its file (`mesh.source`) and shape.
+    A +Z up found from the shape gives way when the take's own skeleton (a take is +Y up) stands inside the
+    mesh as stored: a figure on rounded feet may topple by the floor test, yet it stands."""
     from .mesh.upright import Upright, find_upright
-
-    if up == "auto":
-        return find_upright(mesh, mesh.source)
-    if up not in ("y", "z"):
-        raise BadSettingsError(f"--up must be one of auto, y, z, got {up!r}")
-    return Upright(up, {}, f"+{up.upper()} up, as asked")
-
-
-def _source_stands_inside(take: Take, mesh: Mesh, bind_frame: int) -> bool:
-    """Whether the take's own skeleton (the file's, when it was mapped to Kinect-20) lies inside `mesh`."""
     from .motion.in_place import stands_inside
 
-    return stands_inside(take.native if take.native is not None else take, mesh, bind_frame)
+    if s.up != "auto":
+        return Upright(s.up, {}, f"+{s.up.upper()} up, as asked")
+    found = find_upright(mesh, mesh.source)
+    if found.up != "y" and stands_inside(take.native if take.native is not None else take, mesh, s.bind_frame):
+        return Upright("y", found.margins, "+Y up: the motion's skeleton stands inside it as stored")
+    return found
 
 
 def _standing_source(take: Take, mesh: Mesh, s: AnimateSettings) -> Take | None:
