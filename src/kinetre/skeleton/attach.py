@@ -18,6 +18,7 @@ from ..graph.graph import DeformationGraph
 from ..jit import njit
 from ..rotation import minimal_rotation_into
 from .models import Skeleton
+from .piece_bones import piece_bones
 
 RINGS = 4
 AROUND = 4
@@ -132,6 +133,8 @@ def attach_skeleton(graph: DeformationGraph, skeleton: Skeleton, joint_mask: np.
     pos, tracked = skeleton.positions, skeleton.tracked
     points, idx, wts, joint_of, bone_of, offsets = [], [], [], [], [], []
     use = joint_mask & tracked
+    # a skeleton standing inside a multi-part mesh carries each piece by the bones that run through it only
+    allowed = piece_bones(graph, skeleton, joint_mask) if node_bones else None
     for j in np.flatnonzero(use):
         near = tree.query_ball_point(pos[j], reach)
         if not near:
@@ -150,6 +153,8 @@ def attach_skeleton(graph: DeformationGraph, skeleton: Skeleton, joint_mask: np.
             if near.size == 0:
                 continue
             near = near[normals[near] @ n > 0.0]
+            if allowed is not None:
+                near = near[allowed[graph.pieces[near], bi]]
             if near.size == 0:
                 continue
             i, w = _carry(nodes, near, q, neighbours)
@@ -159,7 +164,8 @@ def attach_skeleton(graph: DeformationGraph, skeleton: Skeleton, joint_mask: np.
         # a joint outside the graph's box (a rig's helper, an IK pole target) carries none of the mesh
         lo, hi = nodes.min(axis=0) - reach, nodes.max(axis=0) + reach
         within = use & ((pos >= lo) & (pos <= hi)).all(axis=1)
-        for j, bi in enumerate(nearest_bones(nodes, skeleton, within)):
+        mask = None if allowed is None else allowed[graph.pieces]
+        for j, bi in enumerate(nearest_bones(nodes, skeleton, within, mask)):
             if bi < 0:
                 continue
             points.append(nodes[j]), idx.append(np.full(4, j, np.int32)), wts.append(np.array([1.0, 0, 0, 0]))
@@ -172,9 +178,10 @@ def attach_skeleton(graph: DeformationGraph, skeleton: Skeleton, joint_mask: np.
                               np.array(offsets).reshape(-1, 3), skeleton, twist_references(skeleton))
 
 
-def nearest_bones(points: np.ndarray, skeleton: Skeleton, joint_mask: np.ndarray) -> np.ndarray:
+def nearest_bones(points: np.ndarray, skeleton: Skeleton, joint_mask: np.ndarray,
+                  allowed: np.ndarray | None = None) -> np.ndarray:
     """(P,) int: per point the row in model.bones of the nearest bone (as a segment) whose joints are both in
-    `joint_mask`, or -1 when there is none."""
+    `joint_mask` (and, with `allowed` (P, B) bool, that the point may take), or -1 when there is none."""
     bones = np.asarray(skeleton.model.bones, dtype=np.int64).reshape(-1, 2)
     pos = skeleton.positions
     ok = joint_mask[bones[:, 0]] & joint_mask[bones[:, 1]]
@@ -186,7 +193,11 @@ def nearest_bones(points: np.ndarray, skeleton: Skeleton, joint_mask: np.ndarray
     ab = b - a
     s = np.einsum("pbi,bi->pb", points[:, None] - a[None], ab) / np.einsum("bi,bi->b", ab, ab)
     closest = a[None] + np.clip(s, 0.0, 1.0)[..., None] * ab[None]
-    return rows[np.argmin(np.linalg.norm(points[:, None] - closest, axis=2), axis=1)]
+    dist = np.linalg.norm(points[:, None] - closest, axis=2)
+    if allowed is not None:
+        dist = np.where(allowed[:, rows], dist, np.inf)
+    best = np.argmin(dist, axis=1)
+    return np.where(np.isfinite(dist[np.arange(len(points)), best]), rows[best], -1)
 
 
 def twist_references(skeleton: Skeleton, min_sine: float = 0.2) -> np.ndarray:
