@@ -4,7 +4,7 @@
 // The fake camera plays a person video (a y4m file), the fake microphone a WAV file, both on a loop.
 import { mkdirSync } from 'node:fs';
 import { join, resolve } from 'node:path';
-import { chromium, report } from './harness.mjs';
+import { launchWithCamera, report, state, until } from './harness.mjs';
 
 const config = JSON.parse(process.argv[2]);
 const result = { scenario: config.scenario, steps: [] };
@@ -12,18 +12,7 @@ const t0 = Date.now();
 const log = (step, extra = {}) => result.steps.push({ step, s: (Date.now() - t0) / 1000, ...extra });
 
 // Chromium refuses fake-capture paths that contain "..": hand it normalised absolute paths.
-function launch(audio) {
-  const args = [
-    '--headless', '--no-sandbox', '--disable-gpu', '--disable-quic', '--no-first-run',
-    '--disable-background-networking', '--disable-component-update', '--disable-sync',
-    '--disable-background-timer-throttling', '--disable-renderer-backgrounding',
-    '--disable-backgrounding-occluded-windows', '--autoplay-policy=no-user-gesture-required',
-    '--use-fake-ui-for-media-stream', '--use-fake-device-for-media-stream',
-    `--use-file-for-fake-video-capture=${resolve(config.video)}`,
-  ];
-  if (audio) args.push(`--use-file-for-fake-audio-capture=${resolve(audio)}`);
-  return chromium.launch({ executablePath: '/usr/bin/chromium', headless: true, args });
-}
+const launch = (audio) => launchWithCamera(resolve(config.video), audio ? resolve(audio) : null);
 
 async function open(browser, name) {
   const page = await browser.newPage({ viewport: { width: 720, height: 540 }, acceptDownloads: true });
@@ -33,18 +22,6 @@ async function open(browser, name) {
   await page.goto(config.url + (config.query ?? ''));
   await page.waitForFunction(() => window.kinetre && window.kinetre.state().meshId !== null, null, { timeout: 60000 });
   return page;
-}
-
-const state = (page) => page.evaluate(() => {
-  const s = window.kinetre.state();
-  delete s.skeleton;
-  return s;
-});
-
-async function until(page, predicate, arg, timeout = 60000) {
-  // the predicate's truthy value, as seen at that moment (a later read may see the dancer moved on)
-  const handle = await page.waitForFunction(predicate, arg, { timeout, polling: 250 });
-  return handle.jsonValue();
 }
 
 function spread(samples) {

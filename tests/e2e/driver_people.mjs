@@ -7,7 +7,7 @@
 // track: detection rate, render rate and capture → transforms latency while `seconds` of tracking run.
 import { mkdirSync, readFileSync } from 'node:fs';
 import { join, resolve } from 'node:path';
-import { launchWithCamera, report } from './harness.mjs';
+import { launchWithCamera, report, state, until } from './harness.mjs';
 
 const config = JSON.parse(process.argv[2]);
 const result = { scenario: config.scenario, steps: [] };
@@ -25,17 +25,6 @@ async function open(browser) {
   await page.goto(config.url + (config.query ?? ''));
   await page.waitForFunction(() => window.kinetre && window.kinetre.state().meshId !== null, null, { timeout: 60000 });
   return page;
-}
-
-const state = (page) => page.evaluate(() => {
-  const s = window.kinetre.state();
-  delete s.skeleton;
-  return s;
-});
-
-async function until(page, predicate, arg, timeout = 60000) {
-  const handle = await page.waitForFunction(predicate, arg, { timeout, polling: 250 });
-  return handle.jsonValue();
 }
 
 async function screenshot(page, file) {

@@ -39,3 +39,16 @@ export function launchWithCamera(video, audio = null) {
   if (audio) args.push(`--use-file-for-fake-audio-capture=${audio}`);
   return chromium.launch({ executablePath: '/usr/bin/chromium', headless: true, args });
 }
+
+/** The studio page's test-hook state, without the (large) skeleton. */
+export const state = (page) => page.evaluate(() => {
+  const s = window.kinetre.state();
+  delete s.skeleton;
+  return s;
+});
+
+/** The predicate's truthy value, as seen at that moment (a later read may see the dancer moved on). */
+export async function until(page, predicate, arg, timeout = 60000) {
+  const handle = await page.waitForFunction(predicate, arg, { timeout, polling: 250 });
+  return handle.jsonValue();
+}
