@@ -22,9 +22,8 @@ from kinetre.skeleton.mediapipe import BLENDSHAPES, FINGERS
 from kinetre.skeleton.models import KINECT20
 
 from avatar.synthetic import MORPHS, write_rigged_avatar
+from web_bundle import esbuild
 
-ROOT = Path(__file__).resolve().parents[2]
-ESBUILD = ROOT / "web" / "node_modules" / ".bin" / "esbuild"
 RUNNER = Path(__file__).resolve().parent / "node" / "hands_face_ts.mjs"
 HANDS_RUNNER = Path(__file__).resolve().parent / "node" / "person_hands_ts.mjs"
 FRAMES = 6
@@ -32,12 +31,9 @@ FRAMES = 6
 
 @pytest.fixture(scope="module")
 def bundle(tmp_path_factory):
-    assert ESBUILD.exists(), "web/node_modules is missing: npm ci in web/ (make setup does)"
     out = tmp_path_factory.mktemp("ts")
-    src = ROOT / "web" / "src"
-    files = ("avatar/retarget.ts", "avatar/Fingers.ts", "avatar/Expressions.ts", "capture/hands.ts")
-    subprocess.run([str(ESBUILD), *(str(src / f) for f in files), "--bundle", "--format=esm", f"--outdir={out}",
-                    "--entry-names=[name]", "--log-level=warning"], check=True, timeout=120)
+    esbuild(["avatar/retarget.ts", "avatar/Fingers.ts", "avatar/Expressions.ts", "capture/hands.ts"],
+            f"--outdir={out}", "--entry-names=[name]")
     return out
 
 

@@ -13,18 +13,15 @@ from kinetre.avatar.retarget import RetargetState, retarget
 from kinetre.skeleton.models import KINECT20
 
 from avatar.conftest import HUMANOIDS
+from web_bundle import esbuild
 
-ROOT = Path(__file__).resolve().parents[2]
-ESBUILD = ROOT / "web" / "node_modules" / ".bin" / "esbuild"
 RUNNER = Path(__file__).resolve().parent / "node" / "retarget_ts.mjs"
 
 
 @pytest.fixture(scope="module")
 def bundle(tmp_path_factory):
-    assert ESBUILD.exists(), "web/node_modules is missing: npm ci in web/ (make setup does)"
     out = tmp_path_factory.mktemp("ts") / "retarget.mjs"
-    subprocess.run([str(ESBUILD), str(ROOT / "web" / "src" / "avatar" / "retarget.ts"), "--bundle", "--format=esm",
-                    f"--outfile={out}", "--log-level=warning"], check=True, timeout=120)
+    esbuild(["avatar/retarget.ts"], f"--outfile={out}")
     return out
 
 

@@ -8,17 +8,15 @@ from pathlib import Path
 
 import pytest
 
-ROOT = Path(__file__).resolve().parents[2]
-ESBUILD = ROOT / "web" / "node_modules" / ".bin" / "esbuild"
+from web_bundle import esbuild
+
 RUNNER = Path(__file__).resolve().parent / "node" / "people_ts.mjs"
 
 
 @pytest.fixture(scope="module")
 def bundle(tmp_path_factory):
-    assert ESBUILD.exists(), "web/node_modules is missing: npm ci in web/ (make setup does)"
     out = tmp_path_factory.mktemp("ts") / "people.mjs"
-    subprocess.run([str(ESBUILD), str(ROOT / "web" / "src" / "app" / "People.ts"), "--bundle", "--format=esm",
-                    f"--outfile={out}", "--log-level=warning"], check=True, timeout=120)
+    esbuild(["app/People.ts"], f"--outfile={out}")
     return out
 
 
