@@ -35,7 +35,7 @@ $(STAMP): pyproject.toml $(APT_STAMP)
 	touch $@
 
 web: $(STATIC)
-$(STATIC): $(WEB_STAMP) $(MODEL_STAMP) $(shell find web/src web/index.html web/annotate web/vite.config.ts -type f 2>/dev/null)
+$(STATIC): $(WEB_STAMP) $(MODEL_STAMP) $(shell find web/src web/index.html web/annotate web/vite.config.ts src/kinetre/data/blendshapes.json -type f 2>/dev/null)
 	cd web && npm run build
 
 $(WEB_STAMP): web/package.json

@@ -27,31 +27,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..skeleton.mediapipe import BLENDSHAPE_TABLE
 from .load import Avatar
 
-# VRM 1.0 preset -> the blendshapes whose mean drives it; left and right are the face's own in both
-VRM_PRESETS = {
-    "aa": ("jawOpen",),
-    "ih": ("mouthStretchLeft", "mouthStretchRight"),
-    "ou": ("mouthPucker",),
-    "ee": ("mouthLowerDownLeft", "mouthLowerDownRight"),
-    "oh": ("mouthFunnel",),
-    "happy": ("mouthSmileLeft", "mouthSmileRight"),
-    "angry": ("browDownLeft", "browDownRight"),
-    "sad": ("mouthFrownLeft", "mouthFrownRight"),
-    "surprised": ("browInnerUp",),
-    "relaxed": ("cheekSquintLeft", "cheekSquintRight"),
-    "blinkLeft": ("eyeBlinkLeft",),
-    "blinkRight": ("eyeBlinkRight",),
-    "lookUp": ("eyeLookUpLeft", "eyeLookUpRight"),
-    "lookDown": ("eyeLookDownLeft", "eyeLookDownRight"),
-    "lookLeft": ("eyeLookOutLeft", "eyeLookInRight"),     # both eyes turned to the face's left
-    "lookRight": ("eyeLookInLeft", "eyeLookOutRight"),
-}
-# VRM 0.x names of the same presets
-VRM0_NAMES = {"a": "aa", "i": "ih", "u": "ou", "e": "ee", "o": "oh", "joy": "happy", "sorrow": "sad",
-              "fun": "relaxed", "blink_l": "blinkLeft", "blink_r": "blinkRight", "lookup": "lookUp",
-              "lookdown": "lookDown", "lookleft": "lookLeft", "lookright": "lookRight"}
+# VRM 1.0 preset -> the blendshapes whose mean drives it (left and right are the face's own in both; lookLeft:
+# both eyes turned to the face's left), and the VRM 0.x names of the same presets
+VRM_PRESETS = {k: tuple(v) for k, v in BLENDSHAPE_TABLE["vrm_presets"].items()}
+VRM0_NAMES = dict(BLENDSHAPE_TABLE["vrm0_names"])
 # any spelling, lower case -> the blendshapes whose mean drives it
 PRESETS = {**{k.lower(): v for k, v in VRM_PRESETS.items()},
            **{old: VRM_PRESETS[new] for old, new in VRM0_NAMES.items()}}

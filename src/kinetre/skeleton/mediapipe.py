@@ -7,7 +7,10 @@ translation that projects the world landmarks onto the image ones (`root_transla
 """
 from __future__ import annotations
 
+import json
 import math
+from importlib import resources
+from types import MappingProxyType
 
 import numpy as np
 
@@ -28,18 +31,11 @@ HAND21 = ("wrist", "thumb_cmc", "thumb_mcp", "thumb_ip", "thumb_tip",
 # Per finger, the landmark chain its bones follow (wrist first: the finger's first bone leaves the palm).
 FINGERS = {"thumb": (1, 2, 3, 4), "index": (5, 6, 7, 8), "middle": (9, 10, 11, 12), "ring": (13, 14, 15, 16),
            "little": (17, 18, 19, 20)}
-# FaceLandmarker's blendshapes, in its output order: "_neutral", then the 51 ARKit face-tracking names.
-BLENDSHAPES = (
-    "_neutral", "browDownLeft", "browDownRight", "browInnerUp", "browOuterUpLeft", "browOuterUpRight", "cheekPuff",
-    "cheekSquintLeft", "cheekSquintRight", "eyeBlinkLeft", "eyeBlinkRight", "eyeLookDownLeft", "eyeLookDownRight",
-    "eyeLookInLeft", "eyeLookInRight", "eyeLookOutLeft", "eyeLookOutRight", "eyeLookUpLeft", "eyeLookUpRight",
-    "eyeSquintLeft", "eyeSquintRight", "eyeWideLeft", "eyeWideRight", "jawForward", "jawLeft", "jawOpen",
-    "jawRight", "mouthClose", "mouthDimpleLeft", "mouthDimpleRight", "mouthFrownLeft", "mouthFrownRight",
-    "mouthFunnel", "mouthLeft", "mouthLowerDownLeft", "mouthLowerDownRight", "mouthPressLeft", "mouthPressRight",
-    "mouthPucker", "mouthRight", "mouthRollLower", "mouthRollUpper", "mouthShrugLower", "mouthShrugUpper",
-    "mouthSmileLeft", "mouthSmileRight", "mouthStretchLeft", "mouthStretchRight", "mouthUpperUpLeft",
-    "mouthUpperUpRight", "noseSneerLeft", "noseSneerRight",
-)
+# FaceLandmarker's blendshapes in its output order ("_neutral", then the 51 ARKit face-tracking names) and
+# the VRM presets they drive: one table in the package data, which the page bundles too.
+BLENDSHAPE_TABLE = MappingProxyType(json.loads(
+    resources.files("kinetre").joinpath("data", "blendshapes.json").read_text(encoding="utf-8")))
+BLENDSHAPES = tuple(BLENDSHAPE_TABLE["names"])
 
 # Kinect joint -> MediaPipe landmarks averaged; Spine is derived below.
 _SOURCES = {

@@ -6,43 +6,14 @@
 // morph targets named after a blendshape (`extras.targetNames`), matched ignoring case, punctuation and a
 // prefix. Linear, so a matrix per mesh: weights = clip(W · blendshapes, 0, 1).
 
-/** The blendshapes in FaceLandmarker's order (skeleton/mediapipe.py BLENDSHAPES). */
-export const BLENDSHAPES = [
-  '_neutral', 'browDownLeft', 'browDownRight', 'browInnerUp', 'browOuterUpLeft', 'browOuterUpRight', 'cheekPuff',
-  'cheekSquintLeft', 'cheekSquintRight', 'eyeBlinkLeft', 'eyeBlinkRight', 'eyeLookDownLeft', 'eyeLookDownRight',
-  'eyeLookInLeft', 'eyeLookInRight', 'eyeLookOutLeft', 'eyeLookOutRight', 'eyeLookUpLeft', 'eyeLookUpRight',
-  'eyeSquintLeft', 'eyeSquintRight', 'eyeWideLeft', 'eyeWideRight', 'jawForward', 'jawLeft', 'jawOpen',
-  'jawRight', 'mouthClose', 'mouthDimpleLeft', 'mouthDimpleRight', 'mouthFrownLeft', 'mouthFrownRight',
-  'mouthFunnel', 'mouthLeft', 'mouthLowerDownLeft', 'mouthLowerDownRight', 'mouthPressLeft', 'mouthPressRight',
-  'mouthPucker', 'mouthRight', 'mouthRollLower', 'mouthRollUpper', 'mouthShrugLower', 'mouthShrugUpper',
-  'mouthSmileLeft', 'mouthSmileRight', 'mouthStretchLeft', 'mouthStretchRight', 'mouthUpperUpLeft',
-  'mouthUpperUpRight', 'noseSneerLeft', 'noseSneerRight',
-];
+import TABLE from '../../../src/kinetre/data/blendshapes.json';
 
-/** VRM 1.0 preset → the blendshapes whose mean drives it; mirrors expressions.py VRM_PRESETS. */
-export const VRM_PRESETS: Record<string, string[]> = {
-  aa: ['jawOpen'],
-  ih: ['mouthStretchLeft', 'mouthStretchRight'],
-  ou: ['mouthPucker'],
-  ee: ['mouthLowerDownLeft', 'mouthLowerDownRight'],
-  oh: ['mouthFunnel'],
-  happy: ['mouthSmileLeft', 'mouthSmileRight'],
-  angry: ['browDownLeft', 'browDownRight'],
-  sad: ['mouthFrownLeft', 'mouthFrownRight'],
-  surprised: ['browInnerUp'],
-  relaxed: ['cheekSquintLeft', 'cheekSquintRight'],
-  blinkLeft: ['eyeBlinkLeft'],
-  blinkRight: ['eyeBlinkRight'],
-  lookUp: ['eyeLookUpLeft', 'eyeLookUpRight'],
-  lookDown: ['eyeLookDownLeft', 'eyeLookDownRight'],
-  lookLeft: ['eyeLookOutLeft', 'eyeLookInRight'], // both eyes turned to the face's left
-  lookRight: ['eyeLookInLeft', 'eyeLookOutRight'],
-};
-/** VRM 0.x names of the same presets (expressions.py VRM0_NAMES). */
-const VRM0_NAMES: Record<string, string> = {
-  a: 'aa', i: 'ih', u: 'ou', e: 'ee', o: 'oh', joy: 'happy', sorrow: 'sad', fun: 'relaxed', blink_l: 'blinkLeft',
-  blink_r: 'blinkRight', lookup: 'lookUp', lookdown: 'lookDown', lookleft: 'lookLeft', lookright: 'lookRight',
-};
+/** The blendshapes in FaceLandmarker's order (the package's data/blendshapes.json, as Python reads it). */
+export const BLENDSHAPES: string[] = TABLE.names;
+/** VRM 1.0 preset → the blendshapes whose mean drives it (the same table's vrm_presets). */
+export const VRM_PRESETS: Record<string, string[]> = TABLE.vrm_presets;
+/** VRM 0.x names of the same presets. */
+const VRM0_NAMES: Record<string, string> = TABLE.vrm0_names;
 
 const key = (name: string): string => String(name).toLowerCase().replace(/[^a-z0-9]/g, '');
 const PRESETS = new Map<string, string[]>([
