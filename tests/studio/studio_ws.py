@@ -11,10 +11,28 @@ from websockets.asyncio.client import connect
 from kinetre.wire.transforms import unpack_transforms
 
 
-def frame_message(seq: int, skeleton, t: float | None = None) -> str:
+def frame_message(seq: int, skeleton, t: float | None = None, hands=None, blendshapes=None) -> str:
+    """A "skeleton" message; `hands` (2, 21, 3) with NaN for a hand not seen, `blendshapes` (52,)."""
     rows = [p.tolist() if ok else None for p, ok in zip(skeleton.positions, skeleton.tracked)]
-    return json.dumps({"type": "skeleton", "seq": seq, "t": time.time() * 1000 if t is None else t,
-                       "model": skeleton.model.name, "positions": rows, "tracked": skeleton.tracked.tolist()})
+    msg = {"type": "skeleton", "seq": seq, "t": time.time() * 1000 if t is None else t,
+           "model": skeleton.model.name, "positions": rows, "tracked": skeleton.tracked.tolist()}
+    if hands is not None:
+        msg["hands"] = [h.tolist() if np.isfinite(h).all() else None for h in hands]
+    if blendshapes is not None:
+        msg["blendshapes"] = np.asarray(blendshapes).tolist()
+    return json.dumps(msg)
+
+
+async def possessed_client(url, walk) -> "StudioClient":
+    """A connected client that has sent the walk's first frame, fitted the mesh to it and possesses it."""
+    c = StudioClient(url)
+    await c.__aenter__()
+    await c.send(frame_message(1, walk[0]))
+    await c.wait(lambda c: c.me() and c.me()["frames"] >= 1)
+    await c.send({"type": "fit"})
+    await c.send({"type": "possess"})
+    await c.wait(lambda c: c.me() and c.me()["possessing"], 60)
+    return c
 
 
 class StudioClient:

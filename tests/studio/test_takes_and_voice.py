@@ -8,7 +8,7 @@ import httpx
 import numpy as np
 import pygltflib
 import pytest
-from studio.studio_ws import StudioClient, frame_message
+from studio.studio_ws import StudioClient, frame_message, possessed_client
 
 
 def festival_wav(tmp_path, text: str) -> bytes:
@@ -20,17 +20,6 @@ def festival_wav(tmp_path, text: str) -> bytes:
     subprocess.run(["sox", str(raw), "-r", "16000", "-c", "1", "-b", "16", str(out), "pad", "0.3", "0.3"],
                    check=True, capture_output=True)
     return out.read_bytes()
-
-
-async def possessed_client(url, walk):
-    c = StudioClient(url)
-    await c.__aenter__()
-    await c.send(frame_message(1, walk[0]))
-    await c.wait(lambda c: c.me() and c.me()["frames"] >= 1)
-    await c.send({"type": "fit"})
-    await c.send({"type": "possess"})
-    await c.wait(lambda c: c.me() and c.me()["possessing"], 60)
-    return c
 
 
 def test_a_recorded_take_downloads_as_glb_bvh_and_stream(studio, walk):

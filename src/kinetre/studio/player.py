@@ -14,7 +14,7 @@ from ..errors import KinetreError
 from ..skeleton.models import Skeleton
 from .channels import Channels, Frame, now_ms
 from .meshes import data_path
-from .protocol import skeleton_json
+from .protocol import SkeletonFrame, skeleton_json
 from .subjects import skeleton_subject
 
 SAMPLE_CLIENT = "sample"
@@ -61,7 +61,7 @@ class MotionPlayer:
         frame = self.frames[index % len(self.frames)]
         self.seq += 1
         payload = skeleton_json(self.client, self.seq, t, frame)
-        self.hub.publish(Frame(self.subject, self.seq, t, payload, (self.seq, t, frame)))
+        self.hub.publish(Frame(self.subject, self.seq, t, payload, SkeletonFrame(self.seq, t, frame)))
 
     async def run(self) -> None:
         """Publish frames in real time (frames are skipped, not delayed, when the loop is late)."""

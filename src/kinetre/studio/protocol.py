@@ -11,6 +11,11 @@ Client → server (WebSocket text, JSON objects with a "type"):
     {"type": "ack", "received": int}   (messages of any kind received so far, counting from the welcome)
     "person": int (1..MAX_PERSON) on skeleton, possess, release, subset and fit: one of several people in
         the page's camera, a user of its own (named by `person_client`); without it, the page's own user
+    A skeleton may add (a sender that tracks none leaves them out; readers that know only the body ignore them):
+    "hands": [left, right], each null or 21 [x, y, z]: MediaPipe's hand landmarks in the skeleton's frame
+        (metres, +Y up), the wrist at the body's wrist, as a take records them (docs/take-format.md)
+    "blendshapes": [52 numbers in 0..1] in FaceLandmarker's order (`BLENDSHAPES`: "_neutral", then the 51
+        ARKit names), or null
 
 Server → client: JSON {"type": "welcome" | "state" | "skeleton" | "stats" | "error" | "progress", …}
 and binary node-transform blocks (kinetre/wire/transforms.py).
@@ -19,11 +24,13 @@ from __future__ import annotations
 
 import json
 import math
+from dataclasses import dataclass
 from itertools import chain
 
 import numpy as np
 
 from ..errors import BadSkeletonError
+from ..skeleton.mediapipe import BLENDSHAPES
 from ..skeleton.models import MODELS, Skeleton
 
 MAX_MESSAGE = 1 << 16  # bytes; a Kinect-20 frame is ~1.5 kB
@@ -92,6 +99,70 @@ def parse_skeleton(msg: dict) -> tuple[int, float, Skeleton]:
     return int(seq), t, skeleton
 
 
+HAND_POINTS = 21
+
+
+@dataclass(frozen=True, eq=False)
+class SkeletonFrame:
+    """A parsed "skeleton" message: the body, and the hands and face when the sender tracks them.
+
+    hands : (2, 21, 3) left and right hand landmarks (NaN rows for a hand not seen), or None
+    blendshapes : (52,) weights in `BLENDSHAPES` order, or None without a face
+    """
+
+    seq: int
+    t: float
+    skeleton: Skeleton
+    hands: np.ndarray | None = None
+    blendshapes: np.ndarray | None = None
+
+
+def parse_hands(value) -> np.ndarray | None:
+    """(2, 21, 3) from a message's "hands" ([left, right], each null or 21 [x, y, z]); None for null."""
+    if value is None:
+        return None
+    if type(value) is not list or len(value) != 2:
+        raise ProtocolError("'hands' must be [left, right], each null or 21 [x, y, z]")
+    out = np.full((2, HAND_POINTS, 3), np.nan)
+    for side, marks in enumerate(value):
+        if marks is None:
+            continue
+        name = ("left", "right")[side]
+        if (type(marks) is not list or len(marks) != HAND_POINTS or not set(map(type, marks)) <= _LIST
+                or not set(map(len, marks)) <= _THREE or not set(map(type, chain.from_iterable(marks))) <= _NUMBER_TYPES):
+            raise ProtocolError(f"the {name} hand must be {HAND_POINTS} [x, y, z] numbers or null")
+        try:
+            out[side] = marks
+        except OverflowError:
+            raise ProtocolError(f"the {name} hand has a coordinate out of range") from None
+        if not np.isfinite(out[side]).all():
+            raise ProtocolError(f"the {name} hand has a coordinate that is not finite")
+    return out
+
+
+def parse_blendshapes(value) -> np.ndarray | None:
+    """(52,) from a message's "blendshapes" (weights in 0..1 in `BLENDSHAPES` order); None for null."""
+    if value is None:
+        return None
+    if (type(value) is not list or len(value) != len(BLENDSHAPES)
+            or not set(map(type, value)) <= _NUMBER_TYPES):
+        raise ProtocolError(f"'blendshapes' must be {len(BLENDSHAPES)} numbers (in FaceLandmarker's order) or null")
+    try:
+        weights = np.array(value, dtype=np.float64)
+    except OverflowError:
+        raise ProtocolError("a blendshape weight is out of range") from None
+    bad = np.flatnonzero(~((weights >= 0.0) & (weights <= 1.0)))  # NaN fails both
+    if bad.size:
+        raise ProtocolError(f"blendshape {BLENDSHAPES[bad[0]]!r} must be a weight in 0..1, got {value[bad[0]]!r}")
+    return weights
+
+
+def parse_frame(msg: dict) -> SkeletonFrame:
+    """A "skeleton" message with its optional hands and blendshapes (see the module docstring)."""
+    seq, t, skeleton = parse_skeleton(msg)
+    return SkeletonFrame(seq, t, skeleton, parse_hands(msg.get("hands")), parse_blendshapes(msg.get("blendshapes")))
+
+
 MAX_PERSON = 1 << 20
 
 
@@ -115,11 +186,18 @@ def is_person_of(user: str, client: str) -> bool:
     return user.startswith(client + "p") and user[len(client) + 1:].isdigit()
 
 
-def skeleton_json(client: str, seq: int, t: float, skeleton: Skeleton) -> bytes:
-    """The "skeleton" message forwarded to viewers (untracked rows become null)."""
+def skeleton_json(client: str, seq: int, t: float, skeleton: Skeleton, hands: np.ndarray | None = None,
+                  blendshapes: np.ndarray | None = None) -> bytes:
+    """The "skeleton" message forwarded to viewers (untracked rows become null), with the hands and
+    blendshapes when given."""
     rows = [p if ok else None for p, ok in zip(np.round(skeleton.positions, 4).tolist(), skeleton.tracked)]
-    return json.dumps({"type": "skeleton", "client": client, "seq": seq, "t": t, "model": skeleton.model.name,
-                       "positions": rows, "tracked": skeleton.tracked.tolist()}).encode()
+    msg = {"type": "skeleton", "client": client, "seq": seq, "t": t, "model": skeleton.model.name,
+           "positions": rows, "tracked": skeleton.tracked.tolist()}
+    if hands is not None:
+        msg["hands"] = [h.tolist() if np.isfinite(h).all() else None for h in hands]
+    if blendshapes is not None:
+        msg["blendshapes"] = blendshapes.tolist()
+    return json.dumps(msg).encode()
 
 
 def with_client(text: str | bytes, client: str) -> bytes:

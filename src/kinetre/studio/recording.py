@@ -1,8 +1,9 @@
 """Takes: the frames a scene solved while recording, exported as files a person can take away.
 
 A take is written as GLB (the mesh animated), node transforms (the page replays its physics from them),
-and, when a user drove it, BVH and the skeleton stream of its first user. Each take gets a folder of its
-own under the studio's take directory, served as /api/takes/<id>/<file>.
+and, when a user drove it, BVH and the skeleton stream of its first user, with that user's hands and face
+blendshapes as `kinetre capture` records a person's (so `kinetre avatar` drives fingers and expressions from
+it). Each take gets a folder of its own under the studio's take directory, served as /api/takes/<id>/<file>.
 """
 from __future__ import annotations
 
@@ -13,7 +14,9 @@ import tempfile
 from pathlib import Path
 
 from ..errors import KinetreError
-from .scene import Scene, resample
+from ..motion.take import PersonFrame, Take, crowd_take
+from ..skeleton.mediapipe import BLENDSHAPES
+from .scene import Scene, TakeFrame, resample
 
 TAKE_FPS = 30.0
 
@@ -66,12 +69,22 @@ def export_take(folder: Path, mesh, graph, take, fps: float) -> dict[str, str]:
     files["transforms"] = "take.transforms"
     clients = [c for c in take[0].skeletons]
     if clients:
-        frames = [f.skeletons.get(clients[0]) for f in take]
-        frames = [s for s in frames if s is not None]
+        first = [f for f in take if f.skeletons.get(clients[0]) is not None]
+        frames = [f.skeletons[clients[0]] for f in first]
         from ..export.bvh import write_bvh
         write_bvh(folder / "take.bvh", frames, fps)
         files["bvh"] = "take.bvh"
         from ..motion import stream
-        stream.write_stream(folder / "take.kinetre.jsonl", frames, fps)
+        stream.write_stream(folder / "take.kinetre.jsonl", user_take(first, clients[0], fps))
         files["stream"] = "take.kinetre.jsonl"
     return files
+
+
+def user_take(frames: list[TakeFrame], client: str, fps: float) -> Take:
+    """User `client`'s skeleton frames as a take; with the hands and blendshapes the user sent, as a camera
+    take's person 0 (the main person), in the layout `kinetre capture` writes."""
+    main = [f.skeletons[client] for f in frames]
+    if not any(client in f.hands or client in f.blendshapes for f in frames):
+        return Take.from_frames(main, fps)
+    people = [(PersonFrame(0, f.skeletons[client], f.hands.get(client), f.blendshapes.get(client)),) for f in frames]
+    return crowd_take(main, people, fps, "", BLENDSHAPES)

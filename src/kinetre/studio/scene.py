@@ -29,7 +29,7 @@ from ..skeleton.subsets import subset_mask
 from ..wire.transforms import pack_transforms
 from .channels import Channels, Frame, now_ms
 from .placement import Placement
-from .protocol import ProtocolError, parse_message, parse_skeleton
+from .protocol import ProtocolError, SkeletonFrame, parse_frame, parse_message
 from .solve_worker import InlineSolver, SolverLost
 from .subjects import SKELETONS, STATE, TRANSFORMS, last_token
 from .takelog import TakeLog, read_take_log
@@ -47,6 +47,8 @@ class User:
 
     client: str
     parsed: Skeleton | None = None  # world frame, newest parsed (see `latest`)
+    parsed_hands: np.ndarray | None = None  # (2, 21, 3) of the newest parsed frame (see `hands`)
+    parsed_blendshapes: np.ndarray | None = None  # (52,) of the newest parsed frame (see `blendshapes`)
     raw: bytes | None = None  # a newer frame not parsed yet (a user who does not drive the solve)
     seq: int = -1
     t: float = 0.0
@@ -64,17 +66,35 @@ class User:
         possessing ones drive the solve; the others' frames are needed only when one fits or possesses. A
         frame that does not parse leaves the last good one (it came through a server that validated it, so
         only a foreign publisher in the room can send one)."""
+        self._parse_raw()
+        return self.parsed
+
+    @property
+    def hands(self) -> np.ndarray | None:
+        """(2, 21, 3) the left and right hand landmarks of the newest frame (world frame, metres, +Y up, the
+        wrist at the skeleton's wrist; NaN rows for a hand not seen), or None when the user sends no hands."""
+        self._parse_raw()
+        return self.parsed_hands
+
+    @property
+    def blendshapes(self) -> np.ndarray | None:
+        """(52,) the face blendshape weights of the newest frame (`skeleton.mediapipe.BLENDSHAPES` order), or
+        None without a face."""
+        self._parse_raw()
+        return self.parsed_blendshapes
+
+    def take_frame(self, frame: SkeletonFrame) -> None:
+        """Keep `frame` as the newest parsed frame."""
+        self.parsed, self.parsed_hands, self.parsed_blendshapes, self.raw = \
+            frame.skeleton, frame.hands, frame.blendshapes, None
+
+    def _parse_raw(self) -> None:
         if self.raw is not None:
             raw, self.raw = self.raw, None
             try:
-                self.parsed = parse_skeleton(parse_message(raw))[2]
+                self.take_frame(parse_frame(parse_message(raw)))
             except ProtocolError:
                 pass
-        return self.parsed
-
-    @latest.setter
-    def latest(self, skeleton: Skeleton | None) -> None:
-        self.parsed, self.raw = skeleton, None
 
     def placed(self, skeleton: Skeleton) -> Skeleton:
         """The frame moved to where the user's joint-map source stands (unchanged without one)."""
@@ -90,9 +110,14 @@ class User:
 
 @dataclass
 class TakeFrame:
+    """One solved frame of a take: the pose and, per possessing user, the skeleton, hands and blendshapes it
+    was solved from (hands and blendshapes only for users who sent them)."""
+
     t: float
     pose: GraphPose
     skeletons: dict[str, Skeleton] = field(default_factory=dict)
+    hands: dict[str, np.ndarray] = field(default_factory=dict)
+    blendshapes: dict[str, np.ndarray] = field(default_factory=dict)
 
 
 class Scene:
@@ -134,7 +159,8 @@ class Scene:
         self.superseded = 0  # possessing users' frames replaced by a newer one before any solve used them
         self.frames_in = 0  # skeleton frames that reached the scene
         self._skeletons = None  # the subscription, whose `skipped` counts frames merged latest-wins
-        self._unpublished = None  # (pose, t_source, skeletons) solved, published once the next solve is sent
+        # (pose, t_source, skeletons, hands, blendshapes) solved, published once the next solve is sent
+        self._unpublished = None
         self.set_mesh(mesh, graph, name, upright)
 
     # --- mesh and placement -------------------------------------------------------------------------
@@ -182,6 +208,17 @@ class Scene:
             self.users[client] = User(client)
         return self.users[client]
 
+    def hands(self, client: str) -> np.ndarray | None:
+        """User `client`'s newest hands, (2, 21, 3) left and right in the studio's world frame (NaN rows where a
+        hand is not seen), or None for a user who sends none (see `User.hands`)."""
+        user = self.users.get(client)
+        return None if user is None else user.hands
+
+    def blendshapes(self, client: str) -> np.ndarray | None:
+        """User `client`'s newest face blendshapes (52,), or None (see `User.blendshapes`)."""
+        user = self.users.get(client)
+        return None if user is None else user.blendshapes
+
     def forget(self, client: str) -> None:
         """A client disconnected: it lets go and disappears."""
         if client in self.users:
@@ -195,25 +232,25 @@ class Scene:
         """A skeleton frame from the hub (already validated by the server that published it)."""
         client = last_token(frame.subject)
         user = self.user(client)
-        skeleton = None
+        parsed = None
         if frame.value is not None:
-            seq, t, skeleton = frame.value  # decoded by the publisher in this process
-        elif user.bind is None:
-            seq, t = frame.seq, frame.t  # the bus envelope's; the JSON is parsed when needed (User.latest)
-        else:
+            parsed = frame.value  # decoded by the publisher in this process
+        elif user.bind is not None:
             try:
-                seq, t, skeleton = parse_skeleton(parse_message(frame.data))
+                parsed = parse_frame(parse_message(frame.data))
             except ProtocolError:
                 return
+        # without a parsed frame, the bus envelope's seq and t; the JSON is parsed when needed (User.latest)
+        seq, t = (frame.seq, frame.t) if parsed is None else (parsed.seq, parsed.t)
         if seq <= user.seq and user.frames:
             self.late += 1
             return  # late or duplicate frame: skip, never reorder
         if user.bind is not None and user.frames and user.used != user.seq:
             self.superseded += 1  # merged latest-wins: the solve only ever takes the newest
-        if skeleton is None:
+        if parsed is None:
             user.raw = frame.data
         else:
-            user.latest = skeleton
+            user.take_frame(parsed)
         user.seq, user.t = seq, t
         user.frames += 1
         arrived = time.monotonic()
@@ -423,7 +460,9 @@ class Scene:
             self.solve_cpu_ms = (self.solve_cpu_ms + [self.solver.cpu_ms])[-600:]
             self.stopped += bool(getattr(self.solver, "stopped", False))
             self.pose = pose
-            self._unpublished = (pose, t_source, {u.client: u.latest for u in users})
+            self._unpublished = (pose, t_source, {u.client: u.latest for u in users},
+                                 {u.client: u.hands for u in users if u.hands is not None},
+                                 {u.client: u.blendshapes for u in users if u.blendshapes is not None})
             if not any(u.seq != u.used for u in users):  # else once the next solve is sent
                 self._flush()
             return pose
@@ -432,10 +471,10 @@ class Scene:
         """Record and publish the last solve's pose if it is not out yet."""
         if self._unpublished is None:
             return
-        pose, t_source, skeletons = self._unpublished
+        pose, t_source, skeletons, hands, blendshapes = self._unpublished
         self._unpublished = None
         if self.recording is not None:  # on disk before any viewer sees the frame
-            self.recording.append(self.seq + 1, now_ms(), pose, skeletons)
+            self.recording.append(self.seq + 1, now_ms(), pose, skeletons, hands, blendshapes)
         self._publish_pose(t_source, pose)
 
     def _publish_pose(self, t_source: float, pose: GraphPose | None = None) -> None:
@@ -502,7 +541,7 @@ class Scene:
         if log_ is None:
             return []
         log_.close()
-        take = [TakeFrame(t, pose, skeletons) for _, t, pose, skeletons in read_take_log(log_.path)]
+        take = [TakeFrame(*frame[1:]) for frame in read_take_log(log_.path)]
         if log_.path.parent.name.startswith("kinetre-recording-"):  # ours: a caller's path is left alone
             shutil.rmtree(log_.path.parent, ignore_errors=True)
         return take

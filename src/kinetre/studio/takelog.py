@@ -6,7 +6,8 @@ even if the scene process is killed mid-take; `read_take_log` turns the file bac
 
 One line per frame: {"seq": scene frame number, "t": ms, "x": base64 float64 (N, 12) = R row-major | t,
 "energy": E, "iterations": k, "skeletons": {client: {"model": name, "positions": base64 float64 (J, 3),
-"tracked": [bool]}}}.
+"tracked": [bool], "hands": base64 float64 (2, 21, 3) and "blendshapes": base64 float64 (52,) when the user
+sent them}}}.
 """
 from __future__ import annotations
 
@@ -38,12 +39,20 @@ class TakeLog:
         self._file = open(self.path, "w", encoding="utf-8")
         self.frames = 0
 
-    def append(self, seq: int, t: float, pose: GraphPose, skeletons: dict[str, Skeleton]) -> None:
+    def append(self, seq: int, t: float, pose: GraphPose, skeletons: dict[str, Skeleton],
+               hands: dict[str, np.ndarray] | None = None, blendshapes: dict[str, np.ndarray] | None = None) -> None:
+        """One solved frame; `hands` and `blendshapes` by client, for the clients that sent them."""
         x = np.concatenate([pose.rotations.reshape(-1, 9), pose.translations], axis=1)
+        records = {}
+        for c, s in skeletons.items():
+            if s is None:
+                continue
+            records[c] = {"model": s.model.name, "positions": _b64(s.positions), "tracked": s.tracked.tolist()}
+            for key, values in (("hands", hands), ("blendshapes", blendshapes)):
+                if values and values.get(c) is not None:
+                    records[c][key] = _b64(values[c])
         line = {"seq": seq, "t": t, "x": _b64(x), "energy": None if not np.isfinite(pose.energy) else pose.energy,
-                "iterations": int(pose.iterations),
-                "skeletons": {c: {"model": s.model.name, "positions": _b64(s.positions),
-                                  "tracked": s.tracked.tolist()} for c, s in skeletons.items() if s is not None}}
+                "iterations": int(pose.iterations), "skeletons": records}
         self._file.write(json.dumps(line) + "\n")
         self._file.flush()  # in the OS's hands: survives a kill -9 of this process
         self.frames += 1
@@ -52,8 +61,10 @@ class TakeLog:
         self._file.close()
 
 
-def read_take_log(path: str | Path) -> list[tuple[int, float, GraphPose, dict[str, Skeleton]]]:
-    """(seq, t, pose, skeletons) per frame; a torn last line (the writer was killed mid-write) is skipped."""
+def read_take_log(path: str | Path) -> list[tuple[int, float, GraphPose, dict, dict, dict]]:
+    """(seq, t, pose, skeletons, hands, blendshapes) per frame, the last three by client (hands (2, 21, 3) and
+    blendshapes (52,) only for clients that sent them); a torn last line (the writer was killed mid-write) is
+    skipped."""
     out = []
     lines = Path(path).read_text(encoding="utf-8").splitlines()
     for number, text in enumerate(lines, 1):
@@ -66,10 +77,14 @@ def read_take_log(path: str | Path) -> list[tuple[int, float, GraphPose, dict[st
         x = _array(rec["x"], (-1, 12))
         pose = GraphPose(x[:, :9].reshape(-1, 3, 3), x[:, 9:].copy(),
                          float("nan") if rec["energy"] is None else rec["energy"], rec["iterations"])
-        skeletons = {}
+        skeletons, hands, blendshapes = {}, {}, {}
         for client, s in rec["skeletons"].items():
             model = MODELS[s["model"]]
             skeletons[client] = Skeleton(model, _array(s["positions"], (len(model.joints), 3)),
                                          np.asarray(s["tracked"], bool))
-        out.append((rec["seq"], rec["t"], pose, skeletons))
+            if "hands" in s:
+                hands[client] = _array(s["hands"], (2, 21, 3))
+            if "blendshapes" in s:
+                blendshapes[client] = _array(s["blendshapes"], (-1,))
+        out.append((rec["seq"], rec["t"], pose, skeletons, hands, blendshapes))
     return out

@@ -17,7 +17,7 @@ from starlette.websockets import WebSocket, WebSocketDisconnect
 from .channels import Channels, Frame
 from .fanout import Framing, raw_socket
 from .host import ANSWERED, SCENE_COMMANDS, SceneHost, answer_error, reply
-from .protocol import ProtocolError, parse_message, parse_person, parse_skeleton, person_client, with_client
+from .protocol import ProtocolError, parse_frame, parse_message, parse_person, person_client, with_client
 from .subjects import SKELETON_PREFIX, SKELETONS, STATE, TRANSFORMS, client_subject, skeleton_subject
 
 
@@ -90,11 +90,11 @@ class Viewer:
             msg = parse_message(text)
             kind = msg["type"]
             if kind == "skeleton":
-                seq, t, skeleton = parse_skeleton(msg)
+                frame = parse_frame(msg)
                 stats.received += 1
-                stats.last_seq = seq
+                stats.last_seq = frame.seq
                 user = person_client(self.client, parse_person(msg))  # one of several people in its camera
-                self.hub.publish(Frame(skeleton_subject(user), seq, t, with_client(text, user), (seq, t, skeleton)))
+                self.hub.publish(Frame(skeleton_subject(user), frame.seq, frame.t, with_client(text, user), frame))
             elif kind == "subscribe":
                 stats.skeletons = bool(msg.get("skeletons"))
                 if stats.skeletons:

@@ -14,7 +14,7 @@ from ..errors import KinetreError
 from ..skeleton.models import Skeleton
 from ..vmc.receive import VmcListener
 from .channels import Channels, Frame, now_ms
-from .protocol import skeleton_json
+from .protocol import SkeletonFrame, skeleton_json
 from .subjects import skeleton_subject
 
 log = logging.getLogger("kinetre.studio")
@@ -51,7 +51,7 @@ class VmcUsers:
         seq = self.seq[client] = self.seq.get(client, 0) + 1
         t = now_ms()
         self.hub.publish(Frame(skeleton_subject(client), seq, t, skeleton_json(client, seq, t, skeleton),
-                               (seq, t, skeleton)))
+                               SkeletonFrame(seq, t, skeleton)))
         loop = asyncio.get_running_loop()
         if client not in self.possessed and loop.time() - self.trying.get(client, -RETRY_S) >= RETRY_S:
             self.trying[client] = loop.time()

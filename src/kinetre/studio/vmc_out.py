@@ -19,7 +19,7 @@ from ..skeleton.models import Skeleton
 from ..vmc.send import VmcSender, frame_bundle, vmc_frames
 from .avatars import Shelf
 from .channels import Channels
-from .protocol import ProtocolError, parse_message, parse_skeleton
+from .protocol import ProtocolError, parse_frame, parse_message
 from .subjects import SKELETONS, last_token
 
 log = logging.getLogger("kinetre.studio")
@@ -81,8 +81,8 @@ class VmcOut:
                 if frame is None:
                     return
                 try:
-                    skeleton = frame.value[2] if frame.value is not None else \
-                        parse_skeleton(parse_message(frame.data))[2]
+                    skeleton = (frame.value if frame.value is not None else
+                                parse_frame(parse_message(frame.data))).skeleton
                 except ProtocolError:
                     continue
                 self.offer(last_token(frame.subject), skeleton)
