@@ -5,6 +5,7 @@ import { Camera } from '../capture/Camera';
 import { FaceController, installFaceTestHook } from '../face/FaceController';
 import { neckAnchor } from '../face/neckAnchor';
 import { JOINT_COUNT } from '../capture/kinect20';
+import { faceScores, handsFaceFields } from '../net/handsFace';
 import type { SceneState, ServerMessage, SkeletonMessage, TransformBlock, Vec3 } from '../net/protocol';
 import { StudioSocket } from '../net/StudioSocket';
 import { AvatarStage } from '../avatar/AvatarStage';
@@ -214,7 +215,7 @@ export class Studio {
       this.viewport.scene.add(figure.group);
     }
     figure.update(m.positions.map((p, j) => (m.tracked[j] ? p : null)));
-    this.avatars.drive(m.positions, m.tracked, m.client);
+    this.avatars.drive(m.positions, m.tracked, m.client, { hands: m.hands, face: faceScores(m.blendshapes) });
   }
 
   // --- capture ------------------------------------------------------------------------------------
@@ -222,7 +223,7 @@ export class Studio {
     if (frame) {
       this.me.group.visible = true;
       this.me.update(frame.positions, this.preview?.attachableJoints ?? []);
-      this.sendFrame(frame.positions, frame.tracked, frame.t);
+      this.sendFrame(frame.positions, frame.tracked, frame.t, handsFaceFields(frame.hands, frame.face));
       this.avatars.drive(frame.positions, frame.tracked, 'me', frame);
     } else {
       // nobody in view: an all-untracked frame makes the server hold the last pose
@@ -230,8 +231,8 @@ export class Studio {
     }
   }
 
-  private sendFrame(positions: (Vec3 | null)[], tracked: boolean[], t: number): void {
-    this.socket.sendFrame({ type: 'skeleton', seq: ++this.seq, t, model: 'kinect20', positions, tracked });
+  private sendFrame(positions: (Vec3 | null)[], tracked: boolean[], t: number, extra: object = {}): void {
+    this.socket.sendFrame({ type: 'skeleton', seq: ++this.seq, t, model: 'kinect20', positions, tracked, ...extra });
   }
 
   // --- voice ----------------------------------------------------------------------------------------

@@ -10,6 +10,8 @@ export interface SkeletonMessage {
   model: string;
   positions: (Vec3 | null)[];
   tracked: boolean[];
+  hands?: (Vec3[] | null)[]; // [left, right], see handsFace.ts
+  blendshapes?: number[] | null;
 }
 
 export interface UserState {
