@@ -10,8 +10,11 @@
     POST /api/avatars/{id}/map               {"kinect20": {Kinect joint: avatar joint name}}: saved as JSON next to
                                              the avatar (used from then on), the plan recomputed
     GET  /api/avatars/{id}/map               that JSON file, to keep next to one's own copy of the avatar
-    POST /api/avatars/{id}/takes             {fps, positions (T x 20 x 3, null = untracked), tracked}: the frames
-                                             that drove the avatar, retargeted again here and exported as GLB + BVH
+    POST /api/avatars/{id}/takes             {fps, positions (T x 20 x 3, null = untracked), tracked, and optional
+                                             hands (T x [left, right]) and blendshapes (T x 52), each frame's as a
+                                             skeleton message has them (protocol.py), or null}: the frames that
+                                             drove the avatar, retargeted again here and exported as GLB (finger
+                                             rotations and morph-weight tracks too) + BVH
     GET  /api/avatars/{id}/takes/{n}/{file}  a file of such a take
 
 The page retargets live in TypeScript with the plan it gets here (the same numbers, see
@@ -36,6 +39,10 @@ from ..avatar.bonemap import auto_map, can_drive, check_humanoid, map_path, pars
 from ..avatar.load import EXTENSIONS, load_avatar
 from ..avatar.retarget import plan_retarget, retarget
 from ..errors import BadAvatarError, KinetreError
+from ..motion.take import Take
+from ..skeleton.mediapipe import BLENDSHAPES
+from ..skeleton.models import KINECT20
+from .protocol import ProtocolError, parse_blendshapes, parse_hands
 from .uploads import read_upload
 
 MAX_AVATAR = 100 * 1024 * 1024
@@ -119,10 +126,19 @@ class Shelf:
             raise BadAvatarError(f"expected {len(rows)} x 20 x 3 positions and {len(rows)} x 20 flags, got "
                                  f"{pos.shape} and {tracked.shape}")
         motion = retarget(entry["plan"], pos, tracked)
+        hands = _per_frame(body.get("hands"), len(rows), parse_hands, "hands")
+        faces = _per_frame(body.get("blendshapes"), len(rows), parse_blendshapes, "blendshapes")
+        morphs = None
+        if hands is not None or faces is not None:
+            from ..avatar.drive import hands_and_face
+            take = Take(KINECT20, pos, tracked, float(fps), entry["name"], (0,), pos[:, None], tracked[:, None],
+                        None if hands is None else hands[:, None], None if faces is None else faces[:, None],
+                        BLENDSHAPES if faces is not None else ())
+            motion, morphs = hands_and_face(entry["avatar"], entry["bonemap"], entry["plan"], motion, take)
         take = next(self._takes)
         folder = entry["path"].parent / "takes" / str(take)
         folder.mkdir(parents=True)
-        write_avatar_gltf(folder / "take.glb", entry["avatar"], motion, float(fps))
+        write_avatar_gltf(folder / "take.glb", entry["avatar"], motion, float(fps), morph_weights=morphs)
         write_avatar_bvh(folder / "take.bvh", entry["avatar"], entry["plan"], motion, float(fps))
         base = f"/api/avatars/{avatar_id}/takes/{take}"
         return {"take": take, "frames": len(rows), "fps": fps,
@@ -134,6 +150,25 @@ class Shelf:
 
     def close(self) -> None:
         shutil.rmtree(self.folder, ignore_errors=True)
+
+
+def _per_frame(rows, count: int, parse, name: str) -> np.ndarray | None:
+    """A take's per-frame hands or blendshapes (`parse` reads one frame's, None for null) stacked, NaN where a
+    frame has none; None when no frame has any."""
+    if rows is None:
+        return None
+    if not isinstance(rows, list) or len(rows) != count:
+        raise BadAvatarError(f"{name} must list one entry (or null) for each of the {count} frames")
+    frames = []
+    for k, row in enumerate(rows):
+        try:
+            frames.append(parse(row))
+        except ProtocolError as exc:
+            raise BadAvatarError(f"frame {k}: {exc}") from None
+    shape = next((f.shape for f in frames if f is not None), None)
+    if shape is None:
+        return None
+    return np.stack([np.full(shape, np.nan) if f is None else f for f in frames])
 
 
 def avatar_routes(shelf: Shelf) -> list[Route]:

@@ -2,10 +2,11 @@
 // from the webcam skeleton or the sample motion; three.js's SkinnedMesh does the avatar's own LBS.
 // A skinned glTF/VRM dropped on the page comes here first: the server maps its bones; a humanoid becomes
 // the avatar, one with an incomplete map opens the map editor, a non-humanoid (a fox) is left to
-// possession with a message saying so. Recording keeps the frames that drove the avatar; the server
-// retargets them again and writes the take as GLB and BVH.
+// possession with a message saying so. Recording keeps the frames that drove the avatar, with their hands
+// and face; the server retargets them again and writes the take as GLB (fingers and morph weights too) and BVH.
 import * as THREE from 'three';
 import { GLTFLoader } from 'three/examples/jsm/loaders/GLTFLoader.js';
+import { handsFaceFields, type HandsFaceFields } from '../net/handsFace';
 import type { Vec3 } from '../net/protocol';
 import { AvatarMapEditor } from './AvatarMapEditor';
 import { applyExpressions, expressionWeights, mapExpressions, type ExpressionMap, type MorphHolder } from './Expressions';
@@ -30,7 +31,7 @@ export interface AvatarPayload {
   error?: string;
 }
 
-interface Recorded { positions: (Vec3 | null)[]; tracked: boolean[] }
+interface Recorded { positions: (Vec3 | null)[]; tracked: boolean[]; extra: HandsFaceFields }
 
 /** What drives the avatar besides the body: hands [left, right] and face blendshapes, when seen. */
 export interface HandsAndFace {
@@ -221,7 +222,10 @@ export class AvatarStage {
       m.decompose(bone.position, bone.quaternion, bone.scale);
     });
     this.driven++;
-    if (this.recording) this.recording.push({ positions: positions.map((p) => (p ? [...p] as Vec3 : null)), tracked: [...tracked] });
+    if (this.recording) {
+      this.recording.push({ positions: positions.map((p) => (p ? [...p] as Vec3 : null)), tracked: [...tracked],
+        extra: handsFaceFields(extra.hands as (Vec3[] | null)[] | undefined, extra.face) });
+    }
   }
 
   startRecording(): void {
@@ -239,7 +243,8 @@ export class AvatarStage {
     const fps = Math.min(240, Math.max(1, Math.round((10 * frames.length) / Math.max(seconds, 1e-3)) / 10));
     const r = await fetch(`api/avatars/${this.payload.id}/takes`, {
       method: 'POST', headers: { 'Content-Type': 'application/json' },
-      body: JSON.stringify({ fps, positions: frames.map((f) => f.positions), tracked: frames.map((f) => f.tracked) }),
+      body: JSON.stringify({ fps, positions: frames.map((f) => f.positions), tracked: frames.map((f) => f.tracked),
+        hands: frames.map((f) => f.extra.hands ?? null), blendshapes: frames.map((f) => f.extra.blendshapes ?? null) }),
     });
     const body = (await r.json()) as { files?: Record<string, string>; take?: number; error?: string };
     if (!r.ok || !body.files) throw new Error(body.error ?? `avatar take: HTTP ${r.status}`);
