@@ -31,7 +31,7 @@ def recorded(rigged, walk, name="CesiumMan", frames=20):
 
 async def send_and_listen(packets, gap=0.005):
     got = []
-    listener = VmcListener(lambda address, skeleton: got.append((address, skeleton)), port=0)
+    listener = VmcListener(lambda address, skeleton, face: got.append((address, skeleton)), port=0)
     await listener.start()
     out = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
     for p in packets:

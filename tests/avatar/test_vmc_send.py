@@ -113,11 +113,14 @@ def test_a_takes_face_streams_as_vrm_blendshape_clips(tmp_path, capsys, data_dir
     stop.set()
     thread.join()
     sock.close()
-    assert code == 0 and "5 blendshapes" in capsys.readouterr().out
+    assert code == 0 and "8 blendshapes" in capsys.readouterr().out
     assert len(bundles) == t
     for k, messages in enumerate(bundles):
         blend = {p[0]: p[1] for a, p in messages if a == "/VMC/Ext/Blend/Val"}
-        assert set(blend) == {"A", "Blink", "Blink_L", "Blink_R", "cheekPuff"}
+        # the VRM 0.x presets, then every ARKit name as perfect-sync senders give it
+        assert set(blend) == {"A", "Blink", "Blink_L", "Blink_R", "jawOpen", "eyeBlinkLeft", "eyeBlinkRight",
+                              "cheekPuff"}
         assert abs(blend["A"] - k / (t - 1)) < 1e-6 and abs(blend["Blink"] - 0.5) < 1e-6
         assert abs(blend["Blink_L"] - 0.4) < 1e-6 and blend["Blink_R"] == 0.0
+        assert abs(blend["jawOpen"] - k / (t - 1)) < 1e-6 and abs(blend["eyeBlinkLeft"] - 0.9) < 1e-6
         assert [a for a, _ in messages][-1] == "/VMC/Ext/Blend/Apply"

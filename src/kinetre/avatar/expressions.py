@@ -55,7 +55,7 @@ class ExpressionMap:
     def weights(self, blendshapes: np.ndarray) -> dict:
         """mesh index -> (T, targets) morph weights for (T, B) blendshapes; a frame without a face (NaN)
         keeps the last frame's weights (zero before the first face)."""
-        held = _held(blendshapes)
+        held = held_weights(blendshapes)
         return {mesh: np.clip(held @ m.T, 0.0, 1.0) for mesh, m in self.matrices.items() if np.any(m)}
 
 
@@ -65,7 +65,7 @@ def vrm_expressions(names, blendshapes: np.ndarray) -> tuple[dict, dict]:
     A frame without a face (NaN) holds the last frame's weights (zero before the first face), as
     `ExpressionMap.weights` does. Presets none of whose blendshapes are in `names` are left out.
     """
-    w = np.clip(_held(blendshapes), 0.0, 1.0)
+    w = np.clip(held_weights(blendshapes), 0.0, 1.0)
     index = {n: i for i, n in enumerate(names)}
     preset = {}
     for name, sources in VRM_PRESETS.items():
@@ -81,7 +81,7 @@ def vrm_expressions(names, blendshapes: np.ndarray) -> tuple[dict, dict]:
     return preset, custom
 
 
-def _held(blendshapes) -> np.ndarray:
+def held_weights(blendshapes) -> np.ndarray:
     """The weights, a frame with NaN holding the last finite frame (zeros before the first)."""
     b = np.asarray(blendshapes, dtype=np.float64)
     seen = np.isfinite(b).all(axis=1)
@@ -94,6 +94,34 @@ def _key(name: str) -> str:
 
 
 _PRESETS = {_key(k): v for k, v in PRESETS.items()}
+
+
+def blendshapes_from_clips(clips: dict, names: tuple[str, ...]) -> np.ndarray | None:
+    """Named expression weights as a VMC or VRM sender gives them -> (B,) weights for `names` in [0, 1], or None
+    when no name is known.
+
+    A name that is a blendshape's (any case: "jawOpen", "JawOpen") gives that weight; a preset (VRM 1.0 or 0.x:
+    "aa", "A", "Joy", "Blink_L"...) gives its weight to each blendshape it stands for, unless that one came by
+    name; "Blink" closes both eyes and adds to "Blink_L" / "Blink_R", the split `vrm_expressions` makes.
+    """
+    index = {_key(n): i for i, n in enumerate(names) if not n.startswith("_")}
+    direct = np.full(len(names), np.nan)
+    presets = np.zeros(len(names))
+    known = False
+    for name, weight in clips.items():
+        k = _key(name)
+        if k in index:
+            direct[index[k]] = weight
+            known = True
+            continue
+        sources = BLINKS if k == "blink" else _PRESETS.get(k, ())
+        for source in sources:
+            if _key(source) in index:
+                presets[index[_key(source)]] += weight
+                known = True
+    if not known:
+        return None
+    return np.clip(np.where(np.isnan(direct), presets, direct), 0.0, 1.0)
 
 
 def map_expressions(avatar: Avatar, names: tuple[str, ...]) -> ExpressionMap:

@@ -96,12 +96,12 @@ def cmd_avatar(args) -> int:
         say(f"{args.motion} is on the avatar's own skeleton: played as it is")
     motion, morphs = hands_and_face(avatar, bonemap, plan, motion, take, say)
     if args.vmc is not None:
-        from ..avatar.expressions import vrm_expressions
+        from ..avatar.fingers import map_fingers
         from ..vmc.send import VmcSender, blend_frames, parse_address, vmc_frames
         host, port = parse_address(args.vmc)
-        frames = vmc_frames(plan, bonemap, motion)
+        frames = vmc_frames(plan, bonemap, motion, map_fingers(avatar, bonemap) if take.hands is not None else None)
         faces = take.main_blendshapes()
-        blend = None if faces is None else blend_frames(vrm_expressions(take.blendshape_names, faces))
+        blend = None if faces is None else blend_frames(take.blendshape_names, faces)
         sender = VmcSender(host, port)
         say(f"streaming {len(take)} frames at {take.fps:g} fps to VMC {host}:{port} ({len(frames.bones)} bones"
             f"{'' if blend is None else f', {len(blend[0])} blendshapes'})")

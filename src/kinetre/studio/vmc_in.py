@@ -2,13 +2,16 @@
 
 Each performer (told apart by the address its packets come from) becomes a user "vmc<n>" whose skeleton
 frames go on its own subject, exactly as a webcam page's do, so the scene, the other pages and the avatars
-see one more person. A performer possesses the mesh when it starts, as the sample motion does (fitted to the
+see one more person; its face (`/VMC/Ext/Blend/Val`, as blendshapes) rides on them as a page's does, so the
+pages' avatars show its expressions, takes record it and VMC out passes it on. A performer possesses the mesh when it starts, as the sample motion does (fitted to the
 mesh, taking over from the sample; a live user who already possesses keeps it and the two add up).
 """
 from __future__ import annotations
 
 import asyncio
 import logging
+
+import numpy as np
 
 from ..errors import KinetreError
 from ..skeleton.models import Skeleton
@@ -46,12 +49,13 @@ class VmcUsers:
             self.clients[address] = f"vmc{len(self.clients) + 1}"
         return self.clients[address]
 
-    def receive(self, address, skeleton: Skeleton) -> None:
+    def receive(self, address, skeleton: Skeleton, blendshapes: np.ndarray | None = None) -> None:
         client = self.client(address)
         seq = self.seq[client] = self.seq.get(client, 0) + 1
         t = now_ms()
-        self.hub.publish(Frame(skeleton_subject(client), seq, t, skeleton_json(client, seq, t, skeleton),
-                               SkeletonFrame(seq, t, skeleton)))
+        self.hub.publish(Frame(skeleton_subject(client), seq, t,
+                               skeleton_json(client, seq, t, skeleton, blendshapes=blendshapes),
+                               SkeletonFrame(seq, t, skeleton, blendshapes=blendshapes)))
         loop = asyncio.get_running_loop()
         if client not in self.possessed and loop.time() - self.trying.get(client, -RETRY_S) >= RETRY_S:
             self.trying[client] = loop.time()

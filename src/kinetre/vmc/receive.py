@@ -11,13 +11,20 @@ Kinect-20 joints.
 
 A frame is complete at the end of an OSC bundle that moved a bone, or, for a performer that sends loose
 messages, at its `/VMC/Ext/T` or `/VMC/Ext/Blend/Apply` (both sent once per frame).
+
+Face: `/VMC/Ext/Blend/Val` (name, weight) values take effect at the next `/VMC/Ext/Blend/Apply`, as in a VMC
+receiver; the applied clips become MediaPipe's blendshapes (`avatar.expressions.blendshapes_from_clips`:
+ARKit names as they are, VRM presets such as A, Blink_L, Joy onto the blendshapes they stand for), carried
+with every frame from then on.
 """
 from __future__ import annotations
 
 import numpy as np
 
+from ..avatar.expressions import blendshapes_from_clips
 from ..avatar.normalized import vrm_name
 from ..rotation import quaternion_matrices
+from ..skeleton.mediapipe import BLENDSHAPES
 from ..skeleton.humanoid_map import kinect_frames, map_humanoid
 from ..skeleton.models import KINECT20, Skeleton
 
@@ -76,10 +83,14 @@ class VmcSkeletons:
 
     Per UDP datagram: `start_packet(bundle)`, `message(address, args)` for each OSC message in it, then
     `end_of_packet(bundle)`; `message` and `end_of_packet` return a Skeleton when a frame completes.
+    `blendshapes` is the face applied so far ((52,) in `BLENDSHAPES` order), or None before any.
     """
 
     def __init__(self):
         self.bones: dict = {}
+        self.clips: dict = {}            # /VMC/Ext/Blend/Val since the last Apply
+        self.applied: dict = {}          # every clip's weight as of the last Apply
+        self.blendshapes: np.ndarray | None = None
         self.root = None
         self.moved = False
         self.frames = 0
@@ -97,7 +108,15 @@ class VmcSkeletons:
             values = _numbers(args[1:8])
             if values is not None:
                 self.root = (values[:3], values[3:])
-        elif address in ("/VMC/Ext/T", "/VMC/Ext/Blend/Apply") and not self._in_bundle:
+        elif address == "/VMC/Ext/Blend/Val" and len(args) >= 2 and isinstance(args[0], str):
+            value = _numbers(args[1:2])
+            if value is not None:
+                self.clips[args[0]] = float(value[0])
+        if address == "/VMC/Ext/Blend/Apply" and self.clips:
+            self.applied.update(self.clips)  # a clip keeps its weight until it is sent again
+            self.clips = {}
+            self.blendshapes = blendshapes_from_clips(self.applied, BLENDSHAPES)
+        if address in ("/VMC/Ext/T", "/VMC/Ext/Blend/Apply") and not self._in_bundle:
             return self._frame()
         return None
 
@@ -154,8 +173,9 @@ def check_listen(host: str, port: int) -> None:
 class VmcListener:
     """A python-osc UDP server that turns each performer's packets into skeletons.
 
-    `on_skeleton(address, skeleton)` is called in the event loop for every completed frame, `address` the
-    performer's (host, port); performers are told apart by that address.
+    `on_skeleton(address, skeleton, blendshapes)` is called in the event loop for every completed frame,
+    `address` the performer's (host, port), `blendshapes` its face ((52,) or None, `VmcSkeletons.blendshapes`);
+    performers are told apart by that address.
     """
 
     def __init__(self, on_skeleton, host: str = "127.0.0.1", port: int = 39539):
@@ -207,10 +227,10 @@ class VmcListener:
         for m in messages:
             done = performer.message(m.message.address, m.message.params)
             if done is not None:
-                self.on_skeleton(address, done)
+                self.on_skeleton(address, done, performer.blendshapes)
         done = performer.end_of_packet(bundle)
         if done is not None:
-            self.on_skeleton(address, done)
+            self.on_skeleton(address, done, performer.blendshapes)
 
     def close(self) -> None:
         if self.transport is not None:

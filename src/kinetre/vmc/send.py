@@ -1,8 +1,9 @@
 """An avatar's retargeted frames as VMC protocol messages (OSC over UDP), in Unity's humanoid terms.
 
 Per frame, in this order: `/VMC/Ext/OK` (loaded, calibrated, tracking), `/VMC/Ext/T` (seconds),
-`/VMC/Ext/Root/Pos`, one `/VMC/Ext/Bone/Pos` per humanoid bone (Unity HumanBodyBones names), optional
-`/VMC/Ext/Blend/Val` per blendshape, then `/VMC/Ext/Blend/Apply`; each frame is one OSC bundle.
+`/VMC/Ext/Root/Pos`, one `/VMC/Ext/Bone/Pos` per humanoid bone (Unity HumanBodyBones names, the finger bones
+when the hands are tracked), optional `/VMC/Ext/Blend/Val` per blendshape, then `/VMC/Ext/Blend/Apply`; each
+frame is one OSC bundle.
 
 Rotations are the normalised humanoid's (avatar/normalized.py): local to the nearest sent parent and
 relative to the T-pose, which is a VMC receiver's rest. Positions: the T-pose offsets from that parent (so
@@ -11,8 +12,8 @@ the floor.
 
 Face. `/VMC/Ext/Blend/Val` names are a receiver's blendshape clips: VRM 0.x's preset names (A, I, U, E, O,
 Blink, Blink_L, Blink_R, Joy, Angry, Sorrow, Fun, LookUp...; `BLEND_NAMES`) for the VRM 1.0 expressions a
-face's ARKit weights make (avatar/expressions.py), and the other ARKit names as they are, which
-"perfect sync" avatars have as clips of their own.
+face's ARKit weights make (avatar/expressions.py), and every ARKit name as it is (jawOpen, eyeBlinkLeft...),
+as face trackers (iFacialMocap, XR Animator) send them to "perfect sync" avatars, which have a clip for each.
 
 Axes. The normalised humanoid faces +Z with its left on +X (glTF/VRM 1.0 style); Unity's left-handed frame
 faces +Z with the left on −X: positions (x, y, z) → (−x, y, z), unit quaternions (x, y, z, w) → (x, −y, −z, w)
@@ -26,12 +27,14 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..avatar.bonemap import BoneMap
-from ..avatar.normalized import BONES, NormalizedMotion, normalized_motion
+from ..avatar.expressions import held_weights, vrm_expressions
+from ..avatar.fingers import FingerMap
+from ..avatar.normalized import BONES, PARENTS, NormalizedMotion, normalized_motion
 from ..avatar.retarget import AvatarMotion, RetargetPlan
 from ..errors import KinetreError
 from ..rotation import matrix_quaternions
 
-__all__ = ["BLEND_NAMES", "BONES", "MIRROR", "PORT", "VmcFrames", "VmcSender", "blend_frames", "frame_bundle",
+__all__ = ["BLEND_NAMES", "BONES", "MIRROR", "PARENTS", "PORT", "VmcFrames", "VmcSender", "blend_frames", "frame_bundle",
            "parse_address", "unity_frames", "vmc_frames"]
 
 PORT = 39539
@@ -66,9 +69,11 @@ class VmcFrames:
         return int(self.positions.shape[0])
 
 
-def vmc_frames(plan: RetargetPlan, bonemap: BoneMap, motion: AvatarMotion) -> VmcFrames:
-    """Every frame of `motion` on the normalised humanoid, mirrored into Unity's axes."""
-    return unity_frames(normalized_motion(plan, bonemap, motion))
+def vmc_frames(plan: RetargetPlan, bonemap: BoneMap, motion: AvatarMotion,
+               fingers: FingerMap | None = None) -> VmcFrames:
+    """Every frame of `motion` on the normalised humanoid, mirrored into Unity's axes; with `fingers`, the
+    finger bones of its chains too."""
+    return unity_frames(normalized_motion(plan, bonemap, motion, fingers))
 
 
 def unity_frames(norm: NormalizedMotion) -> VmcFrames:
@@ -80,10 +85,13 @@ def unity_frames(norm: NormalizedMotion) -> VmcFrames:
     return VmcFrames(norm.bones, positions, rotations)
 
 
-def blend_frames(expressions: tuple[dict, dict]) -> list[dict]:
-    """({VRM 1.0 preset: (T,)}, {custom: (T,)}) weights -> per frame {VMC blendshape name: weight}."""
-    preset, custom = expressions
-    named = {BLEND_NAMES.get(k, k): w for k, w in preset.items()} | dict(custom)
+def blend_frames(names, blendshapes: np.ndarray) -> list[dict]:
+    """(T, B) blendshape weights named `names` -> per frame {VMC blendshape name: weight}: the VRM 0.x presets
+    they make, then every ARKit name (a frame without a face holds the last one's, as `vrm_expressions`)."""
+    preset, _ = vrm_expressions(names, blendshapes)
+    held = np.clip(held_weights(blendshapes), 0.0, 1.0)
+    named = {BLEND_NAMES.get(k, k): w for k, w in preset.items()} | \
+        {n: held[:, i] for i, n in enumerate(names) if not n.startswith("_")}
     t = len(next(iter(named.values()))) if named else 0
     return [{name: float(w[k]) for name, w in named.items()} for k in range(t)]
 
