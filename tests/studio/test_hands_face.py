@@ -7,12 +7,10 @@ from __future__ import annotations
 import asyncio
 import json
 import socket
-import threading
 
 import httpx
 import numpy as np
 import pytest
-from pythonosc.osc_packet import OscPacket
 from scipy.spatial.transform import Rotation
 
 from export.gltf_player import GltfPlayer
@@ -33,6 +31,7 @@ from kinetre.studio.vmc_in import VmcUsers
 from kinetre.vmc.send import MIRROR, blend_frames, frame_bundle, vmc_frames
 from studio.conftest import start_server
 from studio.studio_ws import frame_message, possessed_client
+from studio.vmc_receiver import vmc_receiver
 
 from avatar.synthetic import MORPHS, write_rigged_avatar
 
@@ -51,28 +50,11 @@ def avatar_file(tmp_path_factory):
 @pytest.fixture(scope="module")
 def vmc_studio():
     """(URL, bundles) of a studio whose avatars send VMC to a UDP receiver on loopback (every bundle decoded)."""
-    sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
-    sock.bind(("127.0.0.1", 0))
-    sock.settimeout(0.2)
-    bundles, stop = [], threading.Event()
-
-    def run():
-        while not stop.is_set():
-            try:
-                data, _ = sock.recvfrom(65536)
-            except socket.timeout:
-                continue
-            bundles.append([(m.message.address, m.message.params) for m in OscPacket(data).messages])
-
-    thread = threading.Thread(target=run, daemon=True)
-    thread.start()
-    proc, url = start_server(nodes=64, timeout=600, vmc=("127.0.0.1", sock.getsockname()[1]))
-    yield url, bundles
-    proc.terminate()
-    proc.wait(10)
-    stop.set()
-    thread.join()
-    sock.close()
+    with vmc_receiver() as (port, bundles):
+        proc, url = start_server(nodes=64, timeout=600, vmc=("127.0.0.1", port))
+        yield url, bundles
+        proc.terminate()
+        proc.wait(10)
 
 
 @pytest.fixture(scope="module")

@@ -5,12 +5,10 @@ from __future__ import annotations
 
 import asyncio
 import socket
-import threading
 import time
 
 import numpy as np
 import pytest
-from pythonosc.osc_packet import OscPacket
 from scipy.spatial.transform import Rotation
 
 from studio.conftest import start_server
@@ -23,6 +21,7 @@ from kinetre.skeleton.models import KINECT20
 from kinetre.studio.meshes import data_path
 from kinetre.vmc.send import BONES, MIRROR, frame_bundle, vmc_frames
 from studio.studio_ws import StudioClient
+from studio.vmc_receiver import vmc_receiver
 
 LIMBS = {"LeftLowerArm": ("ElbowLeft", "WristLeft", (1.0, 0.0, 0.0)),
          "RightLowerArm": ("ElbowRight", "WristRight", (-1.0, 0.0, 0.0)),
@@ -50,25 +49,8 @@ def udp_port() -> int:
 
 @pytest.fixture
 def receiver():
-    sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
-    sock.bind(("127.0.0.1", 0))
-    sock.settimeout(0.2)
-    bundles, stop = [], threading.Event()
-
-    def run():
-        while not stop.is_set():
-            try:
-                data, _ = sock.recvfrom(65536)
-            except socket.timeout:
-                continue
-            bundles.append([(m.message.address, m.message.params) for m in OscPacket(data).messages])
-
-    thread = threading.Thread(target=run, daemon=True)
-    thread.start()
-    yield sock.getsockname()[1], bundles
-    stop.set()
-    thread.join()
-    sock.close()
+    with vmc_receiver() as received:
+        yield received
 
 
 def test_studio_avatars_send_the_driving_walk_as_vmc(receiver, data_dir):
