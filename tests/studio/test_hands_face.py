@@ -7,6 +7,8 @@ from __future__ import annotations
 import asyncio
 import json
 import socket
+import subprocess
+from pathlib import Path
 
 import httpx
 import numpy as np
@@ -34,9 +36,11 @@ from studio.studio_ws import frame_message, possessed_client
 from studio.vmc_receiver import vmc_receiver
 
 from avatar.synthetic import MORPHS, write_rigged_avatar
+from web_bundle import esbuild
 
 WRISTS = [KINECT20.index("WristLeft"), KINECT20.index("WristRight")]
 JAW = BLENDSHAPES.index("jawOpen")
+NODE = Path(__file__).resolve().parent / "node"
 
 
 @pytest.fixture(scope="module")
@@ -287,3 +291,25 @@ def test_an_avatar_take_from_the_page_exports_its_fingers_and_morph_weights(vmc_
     body["hands"][3] = [[[0.0, 1.0]] * 21, None]
     bad = httpx.post(f"{studio}/api/avatars/{avatar}/takes", json=body, timeout=60)
     assert bad.status_code == 400 and bad.json()["error"].startswith("frame 3: the left hand must be 21")
+
+
+def test_the_pages_hand_and_face_fields_are_what_the_server_reads(tmp_path, walk, hand_shape):
+    """The page's handsFaceFields (web/src/net/handsFace.ts, run under node) on MediaPipe-like input: the
+    server parses its fields to the hands at 0.1 mm and the scores, by name, at 1e-4; a face lacking a name
+    and a frame without hands send neither field."""
+    bundle = tmp_path / "handsFace.js"
+    esbuild(["net/handsFace.ts"], f"--outfile={bundle}")
+    sk, hands, _ = sent_frames(walk, hand_shape, 5)[4]                 # the left hand lost
+    rng = np.random.default_rng(5)
+    scores = {n: float(w) for n, w in zip(BLENDSHAPES[::-1], rng.uniform(0, 1, len(BLENDSHAPES)))}  # any order
+    cases = [{"hands": [None, hands[1].tolist()], "scores": scores},
+             {"hands": [None, None], "scores": {n: w for n, w in scores.items() if n != "jawOpen"}}]
+    run = subprocess.run(["node", str(NODE / "hands_face_wire_ts.mjs"), str(bundle)], input=json.dumps(cases),
+                         capture_output=True, text=True, timeout=120, check=True)
+    full, partial = json.loads(run.stdout)
+    frame = parse_frame({**json.loads(frame_message(1, sk)), **full["fields"]})
+    assert np.isnan(frame.hands[0]).all()
+    assert np.abs(frame.hands[1] - hands[1]).max() <= 0.5e-4 + 1e-12
+    np.testing.assert_allclose(frame.blendshapes, [scores[n] for n in BLENDSHAPES], atol=0.5e-4 + 1e-12)
+    assert full["back"] == dict(zip(BLENDSHAPES, frame.blendshapes.tolist()))
+    assert partial == {"fields": {}, "back": None}
