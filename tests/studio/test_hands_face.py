@@ -193,7 +193,8 @@ def check_vmc_out(bundles, frames):
         matched += 1
         assert abs(blend["A"] - face[JAW]) < 1e-6
         left, right = (face[BLENDSHAPES.index(n)] for n in ("eyeBlinkLeft", "eyeBlinkRight"))
-        assert abs(blend["Blink"] - min(left, right)) < 1e-6 and abs(blend["Blink_L"] - (left - min(left, right))) < 1e-6
+        both = min(left, right)
+        assert abs(blend["Blink"] - both) < 1e-6 and abs(blend["Blink_L"] - (left - both)) < 1e-6
         local = {p[0]: Rotation.from_quat(p[4:8]).as_matrix() for a, p in messages if a == "/VMC/Ext/Bone/Pos"}
         hands = frames[i][1]
         for side in (0, 1):

@@ -129,7 +129,8 @@ def parse_hands(value) -> np.ndarray | None:
             continue
         name = ("left", "right")[side]
         if (type(marks) is not list or len(marks) != HAND_POINTS or not set(map(type, marks)) <= _LIST
-                or not set(map(len, marks)) <= _THREE or not set(map(type, chain.from_iterable(marks))) <= _NUMBER_TYPES):
+                or not set(map(len, marks)) <= _THREE
+                or not set(map(type, chain.from_iterable(marks))) <= _NUMBER_TYPES):
             raise ProtocolError(f"the {name} hand must be {HAND_POINTS} [x, y, z] numbers or null")
         try:
             out[side] = marks

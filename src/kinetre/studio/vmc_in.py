@@ -3,8 +3,9 @@
 Each performer (told apart by the address its packets come from) becomes a user "vmc<n>" whose skeleton
 frames go on its own subject, exactly as a webcam page's do, so the scene, the other pages and the avatars
 see one more person; its face (`/VMC/Ext/Blend/Val`, as blendshapes) rides on them as a page's does, so the
-pages' avatars show its expressions, takes record it and VMC out passes it on. A performer possesses the mesh when it starts, as the sample motion does (fitted to the
-mesh, taking over from the sample; a live user who already possesses keeps it and the two add up).
+pages' avatars show its expressions, takes record it and VMC out passes it on. A performer possesses the
+mesh when it starts, as the sample motion does (fitted to the mesh, taking over from the sample; a live user
+who already possesses keeps it and the two add up).
 """
 from __future__ import annotations
 

@@ -3,10 +3,10 @@
 The server retargets each skeleton frame onto each avatar on the shelf (Algorithm 1, the same plan the page
 retargets with) and sends the result as one VMC bundle (vmc/send.py): the body, the finger bones of each hand
 the frame carries (`avatar.retarget.retarget_fingers`; a hand out of view is not sent, so a receiver holds
-its last pose) and the face's blendshapes as `/VMC/Ext/Blend/Val` (VRM 0.x presets and ARKit names). Like the page, an avatar follows one
-source at a time: whoever drives it keeps it until silent for `STALE_S`, then any other user (a webcam, the
-sample motion, a VMC performer) takes over. Avatar n sends to PORT + n − 1, so several avatars reach
-several receivers (VSeeFace, Warudo... listen on one port each).
+its last pose) and the face's blendshapes as `/VMC/Ext/Blend/Val` (VRM 0.x presets and ARKit names). Like
+the page, an avatar follows one source at a time: whoever drives it keeps it until silent for `STALE_S`, then
+any other user (a webcam, the sample motion, a VMC performer) takes over. Avatar n sends to PORT + n − 1, so
+several avatars reach several receivers (VSeeFace, Warudo... listen on one port each).
 """
 from __future__ import annotations
 

@@ -34,8 +34,8 @@ from ..avatar.retarget import AvatarMotion, RetargetPlan
 from ..errors import KinetreError
 from ..rotation import matrix_quaternions
 
-__all__ = ["BLEND_NAMES", "BONES", "MIRROR", "PARENTS", "PORT", "VmcFrames", "VmcSender", "blend_frames", "frame_bundle",
-           "parse_address", "unity_frames", "vmc_frames"]
+__all__ = ["BLEND_NAMES", "BONES", "MIRROR", "PARENTS", "PORT", "VmcFrames", "VmcSender", "blend_frames",
+           "frame_bundle", "parse_address", "unity_frames", "vmc_frames"]
 
 PORT = 39539
 # VRM 1.0 expression -> the VRM 0.x blendshape clip name VMC receivers (VSeeFace, Warudo) know it by
