@@ -34,3 +34,26 @@ def test_scan_command_bad_input_is_one_line_exit_2(tmp_path, capsys):
     args = _parser().parse_args(["scan", str(tmp_path), "-o", str(tmp_path / "x.ply"), "--segment", "change"])
     assert args.func(args) == 2
     assert "--before" in capsys.readouterr().err
+
+
+def test_scan_and_animate_take_the_same_scan_options():
+    from kinetre.cli.animate import register as register_animate
+    parser = argparse.ArgumentParser(prog="kinetre")
+    sub = parser.add_subparsers(dest="command")
+    register(sub)
+    register_animate(sub)
+
+    def scan_group(name):
+        group = next(g for g in sub.choices[name]._action_groups if g.title == "RGB-D frames")
+        return {a.dest: (tuple(a.option_strings), a.help.replace(f"(default {a.default})", ""), a.choices)
+                for a in group._group_actions}
+
+    assert scan_group("scan") == scan_group("animate")
+    assert {"segment", "before", "voxel", "intrinsics", "camera", "depth_scale", "depth_max", "faces"} <= \
+        set(scan_group("scan"))
+    scan = parser.parse_args(["scan", "f/", "-o", "x.ply", "--faces", "500", "--depth-max", "2"])
+    animate = parser.parse_args(["animate", "f/", "--motion", "w.bvh", "-o", "x.glb", "--faces", "500",
+                                 "--depth-max", "2"])
+    from kinetre.cli.common import scan_options
+    assert scan_options(scan) == {"segment": None, "before": None, "target_faces": 500, "depth_max": 2.0}
+    assert scan_options(animate) == {**scan_options(scan), "segment": "plane"}

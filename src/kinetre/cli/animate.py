@@ -8,7 +8,8 @@ import sys
 import time
 
 from ..stopwatch import Stopwatch
-from .common import EPILOG, VIDEO_EXTS, UsageError, frame_range, load_motion, output_ext, quiet_mediapipe
+from .common import (EPILOG, SCAN_KEYWORDS, VIDEO_EXTS, UsageError, add_scan_options, frame_range, load_motion,
+                     output_ext, quiet_mediapipe, scan_options)
 
 ANIMATE_OUTPUTS = (".glb", ".gltf", ".bvh", ".mp4", ".webm", ".kinetre.jsonl")
 UPS = ("y", "z", "auto")
@@ -27,15 +28,6 @@ def register(sub) -> None:
                         "repeat it with --map to join several sources")
     p.add_argument("--map", default=None, metavar="JSON",
                    help="joint map: rename, drop and pair the joints of the --motion sources (docs/joint-maps.md)")
-    p.add_argument("--segment", choices=("plane", "change", "none"), default="plane",
-                   help="RGB-D input: how the scan cuts out the object (default plane)")
-    p.add_argument("--before", default=None, metavar="DIR",
-                   help="RGB-D input with --segment change: frames of the same place without the object")
-    p.add_argument("--depth-scale", type=float, default=None, metavar="S",
-                   help="RGB-D input: raw depth units per metre (default 1000; 5000 for a TUM layout)")
-    p.add_argument("--intrinsics", default=None, metavar="FILE",
-                   help="RGB-D input: Open3D PinholeCameraIntrinsic JSON or 3x3 matrix TXT (default: the folder's)")
-    p.add_argument("--voxel", type=float, default=None, help="RGB-D input: TSDF voxel size in metres (default 0.006)")
     p.add_argument("-o", "--output", required=True, help=f"output: {' '.join(ANIMATE_OUTPUTS)}")
     p.add_argument("--nodes", type=int, default=256, help="graph nodes (default 256)")
     p.add_argument("--seed", type=int, default=0, help="graph sampling seed (default 0)")
@@ -63,6 +55,7 @@ def register(sub) -> None:
     p.add_argument("--max-frames", type=int, default=None, help="stop after this many output frames")
     p.add_argument("--no-skeleton", dest="skeleton", action="store_false", help="video: do not draw the skeleton")
     p.add_argument("-q", "--quiet", action="store_true", help="no progress or summary")
+    add_scan_options(p, segment="plane")
     p.set_defaults(func=cmd_animate)
 
 
@@ -104,11 +97,8 @@ def _animate(args, stats: dict | None) -> int:
     from ..scan.subject import is_frames
     if is_frames(args.mesh):  # RGB-D frames: scan (plane segmentation by default), then rig and animate
         from ..scan.subject import scan_subject
-        options = {k: v for k, v in (("depth_scale", args.depth_scale), ("intrinsics", args.intrinsics),
-                                     ("voxel", args.voxel)) if v is not None}
-        mesh, scanned, scan_notes = scan_subject(args.mesh, None if args.segment == "none" else args.segment,
-                                                 args.before, progress=not args.quiet and sys.stderr.isatty(),
-                                                 **options)
+        mesh, scanned, scan_notes = scan_subject(args.mesh, progress=not args.quiet and sys.stderr.isatty(),
+                                                 **scan_options(args))
         say(f"scanned {args.mesh}: {scanned.frames_used} frames used, {scanned.frames_rejected} rejected, "
             f"{scanned.seconds:.1f} s; {scanned.depth.line()}")
         for warning in scanned.warnings:
@@ -116,10 +106,11 @@ def _animate(args, stats: dict | None) -> int:
         for note in scan_notes:
             print(f"kinetre: note: {note}", file=sys.stderr)
     else:
-        if (args.before is not None or args.segment != "plane" or args.depth_scale is not None
-                or args.intrinsics is not None or args.voxel is not None):
-            raise UsageError("--segment, --before, --depth-scale, --intrinsics and --voxel apply when the input "
-                             "is RGB-D frames (a folder or .zip)")
+        given = ["--segment"] * (args.segment != "plane") + [
+            f"--{name.replace('_', '-')}" for name in ("before", *SCAN_KEYWORDS) if getattr(args, name) is not None]
+        if given:
+            raise UsageError(f"{', '.join(given)}: scan options, which apply when the input is RGB-D frames "
+                             f"(a folder or .zip)")
         mesh = kinetre.load_mesh(args.mesh)
     take = take.slice(frames.start or 0, frames.stop)
     fps = args.fps if args.fps is not None else min(take.fps, 30.0)

@@ -1,5 +1,6 @@
 """What the command-line commands share: the usage error, output types, frame ranges, motion loading, the
-examples under `--help` and the room options of the networked commands."""
+examples under `--help`, the RGB-D scan options (`kinetre scan`, `kinetre animate FRAMES/`) and the room
+options of the networked commands."""
 from __future__ import annotations
 
 import os
@@ -90,3 +91,35 @@ def add_room_options(p) -> None:
     p.add_argument("--nkey", metavar="FILE", default=None,
                    help="the room's NATS nkey seed file: authenticates to NATS instead of the token "
                         "(`kinetre rooms ROOM=@FILE` makes one)")
+
+
+# option (its argparse name) -> the `kinetre.scan.pipeline.scan` keyword it sets
+SCAN_KEYWORDS = {"voxel": "voxel", "intrinsics": "intrinsics", "camera": "camera", "depth_scale": "depth_scale",
+                 "depth_max": "depth_max", "faces": "target_faces", "threads": "threads"}
+
+
+def add_scan_options(p, segment: str) -> None:
+    """The RGB-D scan's options, one group with the same flags and help wherever frames are scanned;
+    `segment` is the command's default cut ("plane", "change" or "none")."""
+    from ..scan.frames import CAMERAS
+    g = p.add_argument_group("RGB-D frames", "how a folder (or .zip) of RGB-D frames is scanned into a mesh")
+    g.add_argument("--segment", choices=("plane", "change", "none"), default=segment,
+                   help=f"plane: remove the supporting plane; change: keep what differs from --before; none: the "
+                        f"whole scene (default {segment})")
+    g.add_argument("--before", metavar="DIR", help="frames of the same place without (or with) the object")
+    g.add_argument("--voxel", type=float, metavar="M", help="TSDF voxel size in metres (default 0.006)")
+    g.add_argument("--intrinsics", metavar="FILE",
+                   help="Open3D PinholeCameraIntrinsic JSON or a 3x3 matrix TXT (default: the folder's)")
+    g.add_argument("--camera", choices=sorted(CAMERAS), help="named camera defaults when no intrinsics file")
+    g.add_argument("--depth-scale", type=float, metavar="S",
+                   help="raw depth units per metre (default 1000; 5000 for a TUM layout)")
+    g.add_argument("--depth-max", type=float, metavar="M", help="ignore depth beyond this, in metres (default 3)")
+    g.add_argument("--faces", type=int, metavar="N", help="decimate the scan to about N faces")
+    g.add_argument("--threads", type=int, metavar="N", help="CPU threads for Open3D (default 1)")
+
+
+def scan_options(args) -> dict:
+    """`kinetre.scan.pipeline.scan`'s keywords from the options of `add_scan_options`: the cut (None for
+    "none"), the frames before, and each option given (one not given keeps the scan's default)."""
+    given = {key: getattr(args, name) for name, key in SCAN_KEYWORDS.items() if getattr(args, name) is not None}
+    return {"segment": None if args.segment == "none" else args.segment, "before": args.before, **given}
