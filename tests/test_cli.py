@@ -114,7 +114,7 @@ def test_animate_stands_a_z_up_mesh_and_says_why(capsys, tmp_path, data_dir, spo
                     process=False).export(lying)  # a quarter turn about +X: stored +Z up
     walk = data_dir / "bvh" / "cmu_12_01_walk.bvh"
     heights = {}
-    for up, said in (("auto", "up: stood up: +Z up, it would topple with +Y up"), ("y", "up: +Y up, as asked")):
+    for up, said in (("auto", "up: stood up: +Z up, it stands better than with +Y up"), ("y", "up: +Y up, as asked")):
         out_path = tmp_path / f"{up}.kinetre.jsonl"
         code, out, err = run(capsys, "animate", lying, "--motion", walk, "--up", up, "--nodes", 48,
                              "--max-frames", 2, "-o", out_path)
@@ -124,8 +124,8 @@ def test_animate_stands_a_z_up_mesh_and_says_why(capsys, tmp_path, data_dir, spo
     lo, hi = mesh.bounds
     assert heights["auto"] == pytest.approx(hi[1] - lo[1], rel=1e-6)  # sized to the standing cow
     assert heights["y"] == pytest.approx(hi[2] - lo[2], rel=1e-6)     # to the lying one, as asked
-    assert "--up must be one of y, z, auto, got 'x'" in bad(capsys, "animate", lying, "--motion", walk,
-                                                            "--up", "x", "-o", tmp_path / "x.glb")
+    assert "--up must be one of auto, y, z, x, -x, -y, -z, got 'w'" in bad(
+        capsys, "animate", lying, "--motion", walk, "--up", "w", "-o", tmp_path / "x.glb")
 
 
 def test_animate_glb(capsys, tmp_path, data_dir, spot):

@@ -29,7 +29,7 @@ if TYPE_CHECKING:
 
 FITS = (None, "mesh", "height", "length")
 SOLVERS = (None, "pcg", "local_global", "exact")
-UPS = ("auto", "y", "z")
+UPS = ("auto", "y", "z", "x", "-x", "-y", "-z")  # "auto" and kinetre.mesh.upright.AXES, kept unloaded
 
 
 @dataclass(frozen=True)
@@ -48,8 +48,8 @@ class AnimateSettings:
         to the facing found from the shapes); flip : turn it round
     solve : solve every frame and skin the graph (False: only place the skeleton, for skeleton outputs)
     up : the mesh's up axis: "auto" (+Y up when the source's skeleton stands inside it as stored; else
-        glTF/VRM are +Y up by spec and other meshes are turned +Z up only when +Y up would topple and +Z up
-        would rest, `kinetre.mesh.upright`), "y" (as stored) or "z"
+        glTF/VRM are +Y up by spec and other meshes stand on the axis found from their shape,
+        `kinetre.mesh.upright`), or the stored axis to turn up: "y" (as stored), "z", "x", "-x", "-y", "-z"
     """
 
     nodes: int = 256
@@ -131,7 +131,7 @@ def animate(mesh: Mesh, take: Take, settings: AnimateSettings = AnimateSettings(
     if not -len(take) <= s.bind_frame < len(take):
         raise BadSettingsError(f"--bind-frame {s.bind_frame} is outside the take's {len(take)} frames")
     if s.up not in UPS:
-        raise BadSettingsError(f"--up must be one of auto, y, z, got {s.up!r}")
+        raise BadSettingsError(f"--up must be one of {', '.join(UPS)}, got {s.up!r}")
     step = on_step or (lambda name: None)
     watch = Stopwatch()
     seconds, lap = watch.seconds, watch.lap
@@ -193,14 +193,14 @@ def _upright(mesh: Mesh, take: Take, s: AnimateSettings) -> Upright:
     """The up axis `mesh` is driven with: the one asked, else found from its file (`mesh.source`) and shape.
     A +Z up found from the shape gives way when the take's own skeleton (a take is +Y up) stands inside the
     mesh as stored: a figure on rounded feet may topple by the floor test, yet it stands."""
-    from .mesh.upright import Upright, find_upright
+    from .mesh.upright import Upright, axis_name, find_upright
     from .motion.in_place import stands_inside
 
     if s.up != "auto":
-        return Upright(s.up, {}, f"+{s.up.upper()} up, as asked")
+        return Upright(s.up, {}, f"{axis_name(s.up)} up, as asked")
     found = find_upright(mesh, mesh.source)
     if found.up != "y" and stands_inside(take.native if take.native is not None else take, mesh, s.bind_frame):
-        return Upright("y", found.margins, "+Y up: the motion's skeleton stands inside it as stored")
+        return Upright("y", found.scores, "+Y up: the motion's skeleton stands inside it as stored")
     return found
 
 

@@ -1,17 +1,24 @@
-"""Up axis on load: a mesh stored +Z up is stood on its feet; +Y up wins whenever the mesh rests on it."""
+"""Up axis on load: a mesh stored with another axis up is stood on its feet; a mesh that stands as stored
+(+Y up) is left alone."""
 import numpy as np
 import pytest
+from scipy.spatial.transform import Rotation
 
+from kinetre.avatar.load import load_avatar
+from kinetre.avatar.skin import skin_avatar
 from kinetre.mesh.load import load_mesh
 from kinetre.mesh.mesh import Mesh
-from kinetre.mesh.upright import find_upright, rotation_to_y_up, support_margin, turned
+from kinetre.mesh.upright import (AXES, area_centroid, find_upright, mirror_errors, resting_faces,
+                                  rotation_to_y_up, turned)
 
-# a quarter turn about +X: what a +Y-up mesh becomes when a tool stores it +Z up
-Y_TO_Z = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, -1.0], [0.0, 1.0, 0.0]])
+MESHES = ("spot.obj", "armadillo.obj", "camelhead.off", "teapot.obj")
+AVATARS = ("CesiumMan.glb", "Fox.glb", "RiggedFigure.glb", "robot_quaternius.glb")
 
 
-def stored_z_up(mesh: Mesh) -> Mesh:
-    return Mesh(vertices=mesh.vertices @ Y_TO_Z.T, faces=mesh.faces, normals=mesh.normals @ Y_TO_Z.T)
+def stored_with_up(mesh: Mesh, up: str, lean: np.ndarray = np.eye(3)) -> Mesh:
+    """What a standing mesh (leant by `lean`) becomes when a tool stores it with its up along `up`."""
+    turn = rotation_to_y_up(up).T @ lean
+    return Mesh(vertices=mesh.vertices @ turn.T, faces=mesh.faces, normals=mesh.normals @ turn.T)
 
 
 def box(lo, hi) -> tuple[np.ndarray, np.ndarray]:
@@ -21,41 +28,84 @@ def box(lo, hi) -> tuple[np.ndarray, np.ndarray]:
     return corners, faces
 
 
-def table() -> tuple[np.ndarray, np.ndarray]:
-    """A table top on one leg at a corner: +Y up it topples (its centre is far from the leg); turned with
-    its +Z up it lies on its side, the top's long edge and the leg on the floor, and rests."""
+def table() -> Mesh:
+    """A table top on one leg at a corner: +Y up it topples (its centre is far from the leg)."""
     top_v, top_f = box((0, 1.0, 0), (2, 1.1, 0.2))
     leg_v, leg_f = box((0, 0, 0), (0.1, 1.0, 0.1))
-    return np.vstack([top_v, leg_v]), np.vstack([top_f, leg_f + len(top_v)])
+    v = np.vstack([top_v, leg_v])
+    return Mesh(vertices=v, faces=np.vstack([top_f, leg_f + len(top_v)]), normals=np.zeros_like(v))
 
 
-def test_the_margin_is_the_centres_distance_inside_the_floor_contact():
-    v, f = box((-1, 0, -1), (1, 1, 1))  # a cube on the floor: the centre 1 from every edge, size 2
-    assert support_margin(v, f) == pytest.approx(0.5)
-    v, f = table()
-    assert support_margin(v, f) < 0  # the centre (x = 1) is far outside the leg's 10 cm square
+def skinned(name, data_dir) -> Mesh:
+    """An avatar's skin in its bind pose as one plain mesh."""
+    avatar = load_avatar(data_dir / "avatars" / name)
+    parts = skin_avatar(avatar, avatar.bind_world[None])[0]
+    offsets = np.cumsum([0] + [len(p) for p in parts])
+    v = np.vstack(parts)
+    return Mesh(vertices=v, faces=np.vstack([p.faces + o for p, o in zip(avatar.primitives, offsets)]),
+                normals=np.zeros_like(v))
 
 
-def test_a_shape_that_topples_with_y_up_is_stood_on_z():
-    v, f = table()
-    found = find_upright(Mesh(vertices=v, faces=f, normals=np.zeros_like(v)), "table.stl")
-    assert found.up == "z" and found.margins["y"] < 0 <= found.margins["z"]  # on its side, it rests
-    upside_down = v @ Y_TO_Z.T @ Y_TO_Z.T  # a half turn: on its top, it rests with +Y up and stays so
-    assert find_upright(Mesh(vertices=upside_down, faces=f, normals=np.zeros_like(v)), "table.stl").up == "y"
+@pytest.fixture(scope="module")
+def standing(data_dir):
+    return {**{n: load_mesh(data_dir / "meshes" / n) for n in MESHES}, **{n: skinned(n, data_dir) for n in AVATARS}}
 
 
-@pytest.mark.parametrize("name", ["spot.obj", "armadillo.obj", "teapot.obj"])
-def test_public_meshes_stored_z_up_stand_again(data_dir, name):
-    mesh = load_mesh(data_dir / "meshes" / name)
-    assert find_upright(mesh, name).up == "y"  # as published: +Y up, left alone
-    z_up = stored_z_up(mesh)
-    found = find_upright(z_up, name.replace(".obj", ".ply"))
-    assert found.up == "z" and found.margins["y"] < 0 <= found.margins["z"]
-    np.testing.assert_allclose(turned(z_up, "z").vertices, mesh.vertices, atol=1e-9)
+def test_a_cube_rests_on_each_face_and_tips_45_degrees():
+    v, f = box((-1, 0, -1), (1, 2, 1))
+    normals, tipping = resting_faces(v, area_centroid(v, f))
+    np.testing.assert_allclose(tipping, 45.0)  # half the side from the edge, half the side high
+    sides = {tuple(np.round(n).astype(int)) for n in normals}
+    assert sides == {tuple(s * e) for e in np.eye(3, dtype=int) for s in (1, -1)}
+    np.testing.assert_allclose(mirror_errors(v, area_centroid(v, f)), 0.0, atol=1e-12)
 
 
-def test_gltf_is_y_up_by_its_specification(data_dir):
-    z_up = stored_z_up(load_mesh(data_dir / "meshes" / "spot.obj"))
+def test_a_shape_that_topples_with_y_up_is_laid_on_a_side_it_rests_on():
+    mesh = table()
+    found = find_upright(mesh, "table.stl")
+    # +Y up it tips over onto the top's edge and the foot of the leg, a face leaning 28 degrees
+    assert found.up != "y" and found.scores[found.up] > found.scores["y"] + 1.0
+    assert find_upright(turned(mesh, found.up), "table.stl").up == "y"  # stood so, it rests as it is
+    assert mirror_errors(mesh.vertices, area_centroid(mesh.vertices, mesh.faces))[0] > 0.05  # leg at one end
+    upside_down = stored_with_up(mesh, "-y")  # on its top, it rests square with +Y up and stays so
+    assert find_upright(upside_down, "table.stl").up == "y"
+
+
+def test_real_meshes_that_stand_as_stored_are_left_alone_even_leaning(standing):
+    lean = Rotation.from_rotvec(np.radians(8.0) * np.array([0.6, 0.0, 0.8])).as_matrix()
+    for name, mesh in standing.items():
+        assert find_upright(mesh, name.replace(".glb", ".ply")).up == "y", name
+        assert find_upright(stored_with_up(mesh, "y", lean), "leaning.ply").up == "y", name
+
+
+def test_real_meshes_stored_z_up_stand_again(standing):
+    # the camel's head, cut at the neck, rests better as a bust on its cut than on its chin
+    for name, mesh in ((n, m) for n, m in standing.items() if n != "camelhead.off"):
+        z_up = stored_with_up(mesh, "z")
+        found = find_upright(z_up, "stored.ply")
+        assert found.up == "z", (name, found)
+        np.testing.assert_allclose(turned(z_up, "z").vertices, mesh.vertices, atol=1e-9)
+
+
+def test_real_meshes_on_any_axis_stand_up_most_of_the_time(standing):
+    # as benchmarks/bench_upright.py measures it: 35 of 48 on these eight meshes (the axes of the file format
+    # alone, +Y and +Z, get 16);
+    # the misses are upside-down or sideways figures that rest as well on their head or back, and the camel's
+    # head, which rests better as a bust (on its neck cut) than on its chin
+    right = {name: [find_upright(stored_with_up(mesh, up), "stored.ply").up == up for up in AXES]
+             for name, mesh in standing.items()}
+    assert sum(map(sum, right.values())) >= 35, right
+    for name in ("spot.obj", "teapot.obj", "CesiumMan.glb"):
+        assert all(right[name]), (name, right[name])
+
+
+def test_gltf_is_y_up_by_its_specification_and_every_axis_turns_to_y(standing):
+    z_up = stored_with_up(standing["spot.obj"], "z")
     assert find_upright(z_up, "spot.glb").up == "y"
-    with pytest.raises(ValueError, match="up must be 'y' or 'z'"):
-        rotation_to_y_up("x")
+    for up in AXES:
+        k, sign = "xyz".index(up[-1]), -1.0 if up.startswith("-") else 1.0
+        turn = rotation_to_y_up(up)
+        np.testing.assert_allclose(turn @ (sign * np.eye(3)[k]), [0, 1, 0], atol=1e-15)
+        assert np.linalg.det(turn) == pytest.approx(1.0)
+    with pytest.raises(ValueError, match="up must be one of y, z, x, -x, -y, -z"):
+        rotation_to_y_up("w")

@@ -91,5 +91,5 @@ def test_the_up_override_turns_the_mesh_and_back(studio):
     v = np.frombuffer(base64.b64decode(payload["positions"]), "<f4").reshape(-1, 3)
     assert np.ptp(v[:, 1]) == pytest.approx(1.6, rel=1e-3) and v[:, 1].min() == pytest.approx(0, abs=1e-4)
     assert turn("y")["up"] == "y"
-    r = httpx.post(studio + "/api/mesh/up?up=x")
-    assert r.status_code == 400 and "up must be 'y' or 'z'" in r.json()["error"]
+    r = httpx.post(studio + "/api/mesh/up?up=w")
+    assert r.status_code == 400 and "up must be one of y, z, x, -x, -y, -z" in r.json()["error"]

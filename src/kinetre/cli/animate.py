@@ -12,7 +12,6 @@ from .common import (EPILOG, SCAN_KEYWORDS, VIDEO_EXTS, UsageError, add_scan_opt
                      output_ext, quiet_mediapipe, scan_options)
 
 ANIMATE_OUTPUTS = (".glb", ".gltf", ".bvh", ".mp4", ".webm", ".kinetre.jsonl")
-UPS = ("y", "z", "auto")
 
 
 def register(sub) -> None:
@@ -43,9 +42,10 @@ def register(sub) -> None:
                    help="degrees about +Y the skeleton is turned (people: from the mesh front +Z; other "
                         "skeletons: added to the facing found from the shapes)")
     p.add_argument("--flip", action="store_true", help="turn the skeleton round (the fit took front for back)")
-    p.add_argument("--up", default="auto", metavar="y|z|auto",
-                   help="the mesh's up axis: auto (default: glTF is +Y up; other files are stood +Z up when +Y up "
-                        "would topple and +Z up rests), y (as stored) or z; the output is written standing, +Y up")
+    p.add_argument("--up", default="auto", metavar="auto|y|z|x|-x|-y|-z",
+                   help="the mesh's up axis: auto (default: glTF is +Y up; other files stand on the axis their shape "
+                        "rests on best, +Y kept unless clearly worse), or the stored axis to turn up (y: as stored); "
+                        "the output is written standing, +Y up")
     p.add_argument("--scale", type=float, default=None, help="BVH: metres per file unit (default: guessed)")
     p.add_argument("--own-skeleton", action="store_true",
                    help="BVH/glTF: drive the mesh by the file's own bones, not the Kinect-20 map (unmapped files "
@@ -78,7 +78,7 @@ def _animate(args, stats: dict | None) -> int:
     import numpy as np
 
     import kinetre
-    from ..animation import AnimateSettings, animate
+    from ..animation import UPS, AnimateSettings, animate
     from ..motion.source import resample
 
     out_ext = output_ext(args.output, ANIMATE_OUTPUTS)
@@ -86,7 +86,7 @@ def _animate(args, stats: dict | None) -> int:
     if args.nodes < 2:
         raise UsageError(f"--nodes must be at least 2, got {args.nodes}")
     if args.up not in UPS:  # checked here, not by argparse: one line on stderr, before any file is read
-        raise UsageError(f"--up must be one of y, z, auto, got {args.up!r}")
+        raise UsageError(f"--up must be one of {', '.join(UPS)}, got {args.up!r}")
     watch = Stopwatch(stats)
     stats, lap = watch.seconds, watch.lap
     t0 = time.perf_counter()

@@ -14,6 +14,7 @@ import threading
 from typing import Protocol
 
 from ..errors import KinetreError
+from ..mesh.upright import AXES
 from .channels import Channels, Frame, now_ms
 from .jobs import Job, Jobs, prepare_upload
 from .meshes import NODES, mesh_payload, prepare_upright
@@ -52,7 +53,7 @@ class SceneHost(Protocol):
     def start_job(self, name: str, data: bytes, scan_options: dict | None = None) -> Job: ...
 
     def set_up(self, up: str) -> Job:
-        """Stand the current mesh with its stored axis `up` ("y" or "z") as +Y (the page's override of the
+        """Stand the current mesh with its stored axis `up` (one of `kinetre.mesh.upright.AXES`) as +Y (the page's override of the
         up axis found on load): a job like an upload; KinetreError where that cannot be done."""
 
     def start_recording(self) -> None: ...
@@ -185,8 +186,8 @@ class LocalScene:
         return job
 
     def set_up(self, up: str) -> Job:
-        if up not in ("y", "z"):
-            raise KinetreError(f"up must be 'y' or 'z', got {up!r}")
+        if up not in AXES:
+            raise KinetreError(f"up must be one of {', '.join(AXES)}, got {up!r}")
         if self.source is None:
             raise KinetreError("the mesh as loaded is not kept here: load it again to stand it on another axis")
         raw, name = self.source

@@ -10,7 +10,7 @@ import numpy as np
 from ..graph.build import build_graph
 from ..mesh.load import load_mesh
 from ..mesh.mesh import Mesh
-from ..mesh.upright import Upright, find_upright, turned
+from ..mesh.upright import Upright, axis_name, find_upright, turned
 from ..physics.spheres import studio_packing
 from .placement import standing_mesh
 
@@ -33,7 +33,7 @@ def prepare_upright(raw: Mesh, path: str, nodes: int = NODES, progress=lambda st
                     up: str | None = None):
     """(Mesh, DeformationGraph, Upright) for a loaded mesh: turned +Y up (`up`, or as its file and shape
     say: mesh.upright), stood in metres, its graph built."""
-    upright = find_upright(raw, path) if up is None else Upright(up, {}, f"+{up.upper()} up, as chosen")
+    upright = find_upright(raw, path) if up is None else Upright(up, {}, f"{axis_name(up)} up, as chosen")
     mesh = standing_mesh(turned(raw, upright.up))
     progress("building graph", 0.3)
     graph = build_graph(mesh, nodes=nodes, seed=0)

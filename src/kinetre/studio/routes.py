@@ -2,7 +2,7 @@
 
     GET  /api/state            the scene state (JSON)
     GET  /api/mesh/{id}        the current mesh with its skinning data (JSON, base64 arrays)
-    POST /api/mesh/up?up=y|z   stand the current mesh with that stored axis up (the page's override of the up
+    POST /api/mesh/up?up=AXIS  stand the current mesh with that stored axis (y, z, x, -x, -y, -z) up (the page's override of the up
                                axis found on load, mesh/upright.py): a job like an upload
     POST /api/mesh?name=F      upload a mesh file (OBJ/PLY/STL/GLB…): a job that loads it and builds the graph;
                                a .zip of RGB-D frames (TUM or Redwood layout) is scanned into a mesh first

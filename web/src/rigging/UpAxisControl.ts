@@ -1,6 +1,7 @@
-// The up-axis entry of the panel: the server stands each mesh upright on load (+Z up when the file's +Y up
-// would topple, mesh/upright.py); this shows which axis it chose and why, and one click stands the mesh on
-// the other one instead (the server turns it and rebuilds its graph, like an upload).
+// The up-axis entry of the panel: the server stands each mesh upright on load (the stored axis it rests on
+// best, mesh/upright.py); this shows which axis it chose and why, and one click stands the mesh on its +Z
+// (from +Y) or its +Y (from any other axis) instead (the server turns it and rebuilds its graph, like an
+// upload).
 
 export class UpAxisControl {
   readonly row: HTMLElement;
