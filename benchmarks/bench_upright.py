@@ -17,7 +17,7 @@ from scipy.spatial.transform import Rotation
 
 from bench_core import DATA, emit
 from kinetre.avatar.load import load_avatar
-from kinetre.avatar.skin import skin_avatar
+from kinetre.avatar.skin import posed_mesh
 from kinetre.gltf_read import read_gltf
 from kinetre.mesh.load import load_mesh
 from kinetre.mesh.mesh import Mesh
@@ -29,16 +29,6 @@ AVATARS = ("CesiumMan.glb", "Fox.glb", "RiggedFigure.glb", "robot_quaternius.glb
 LEAN = 8.0
 
 
-def skinned(path, world) -> Mesh:
-    """The avatar's skin posed by the joint world matrices `world` (J, 4, 4), as one plain mesh."""
-    avatar = load_avatar(path)
-    parts = skin_avatar(avatar, world[None])[0]
-    offsets = np.cumsum([0] + [len(p) for p in parts])
-    faces = np.vstack([prim.faces + o for prim, o in zip(avatar.primitives, offsets)])
-    vertices = np.vstack(parts)
-    return Mesh(vertices=vertices, faces=faces, normals=np.zeros_like(vertices))
-
-
 def upright_meshes():
     """(label, mesh standing +Y up) for every case."""
     for name in MESHES:
@@ -46,11 +36,11 @@ def upright_meshes():
     for name in AVATARS:
         path = DATA / "avatars" / name
         avatar = load_avatar(path)
-        yield f"{name} bind", skinned(path, avatar.bind_world)
+        yield f"{name} bind", posed_mesh(avatar, avatar.bind_world)
         doc = read_gltf(path)
         if doc.doc.animations:
             world = world_matrices(doc, 0, np.array([0.5]))[0][avatar.joints]
-            yield f"{name} posed", skinned(path, world)
+            yield f"{name} posed", posed_mesh(avatar, world)
 
 
 def stored_with_up(mesh: Mesh, up: str, lean: np.ndarray) -> Mesh:

@@ -5,7 +5,7 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from kinetre.avatar.load import load_avatar
-from kinetre.avatar.skin import skin_avatar
+from kinetre.avatar.skin import posed_mesh
 from kinetre.mesh.load import load_mesh
 from kinetre.mesh.mesh import Mesh
 from kinetre.mesh.upright import (AXES, area_centroid, find_upright, mirror_errors, resting_faces,
@@ -36,19 +36,9 @@ def table() -> Mesh:
     return Mesh(vertices=v, faces=np.vstack([top_f, leg_f + len(top_v)]), normals=np.zeros_like(v))
 
 
-def skinned(name, data_dir) -> Mesh:
-    """An avatar's skin in its bind pose as one plain mesh."""
-    avatar = load_avatar(data_dir / "avatars" / name)
-    parts = skin_avatar(avatar, avatar.bind_world[None])[0]
-    offsets = np.cumsum([0] + [len(p) for p in parts])
-    v = np.vstack(parts)
-    return Mesh(vertices=v, faces=np.vstack([p.faces + o for p, o in zip(avatar.primitives, offsets)]),
-                normals=np.zeros_like(v))
-
-
 @pytest.fixture(scope="module")
 def standing(data_dir):
-    return {**{n: load_mesh(data_dir / "meshes" / n) for n in MESHES}, **{n: skinned(n, data_dir) for n in AVATARS}}
+    return {**{n: load_mesh(data_dir / "meshes" / n) for n in MESHES}, **{n: posed_mesh(a := load_avatar(data_dir / "avatars" / n), a.bind_world) for n in AVATARS}}
 
 
 def test_a_cube_rests_on_each_face_and_tips_45_degrees():

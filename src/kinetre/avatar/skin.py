@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..mesh.mesh import Mesh
 from .load import Avatar
 
 
@@ -49,6 +50,16 @@ def skin_avatar(avatar: Avatar, world: np.ndarray, normals: bool = False):
         out_p.append(frame_p)
         out_n.append(frame_n)
     return (out_p, out_n) if normals else out_p
+
+
+def posed_mesh(avatar: Avatar, world: np.ndarray) -> Mesh:
+    """The skin posed by the joint world matrices `world` (J, 4, 4) as one plain mesh (every primitive's
+    triangles, no normals): what a tool that flattens the rig would write."""
+    parts = skin_avatar(avatar, np.asarray(world)[None])[0]
+    offsets = np.cumsum([0] + [len(p) for p in parts])
+    vertices = np.vstack(parts)
+    faces = np.vstack([prim.faces + o for prim, o in zip(avatar.primitives, offsets)])
+    return Mesh(vertices=vertices, faces=faces, normals=np.zeros_like(vertices), source=avatar.source)
 
 
 def bind_bounds(avatar: Avatar) -> tuple[np.ndarray, np.ndarray]:
