@@ -14,7 +14,7 @@ from types import MappingProxyType
 
 import numpy as np
 
-from .models import KINECT20
+from .models import FINGER_JOINTS, HAND21, KINECT20
 
 MEDIAPIPE33 = (
     "nose", "left_eye_inner", "left_eye", "left_eye_outer", "right_eye_inner", "right_eye", "right_eye_outer",
@@ -24,13 +24,9 @@ MEDIAPIPE33 = (
     "right_ankle", "left_heel", "right_heel", "left_foot_index", "right_foot_index",
 )
 
-# HandLandmarker's 21 landmarks: the wrist, then four per finger from the palm out.
-HAND21 = ("wrist", "thumb_cmc", "thumb_mcp", "thumb_ip", "thumb_tip",
-          "index_mcp", "index_pip", "index_dip", "index_tip", "middle_mcp", "middle_pip", "middle_dip", "middle_tip",
-          "ring_mcp", "ring_pip", "ring_dip", "ring_tip", "pinky_mcp", "pinky_pip", "pinky_dip", "pinky_tip")
-# Per finger, the landmark chain its bones follow (wrist first: the finger's first bone leaves the palm).
-FINGERS = {"thumb": (1, 2, 3, 4), "index": (5, 6, 7, 8), "middle": (9, 10, 11, 12), "ring": (13, 14, 15, 16),
-           "little": (17, 18, 19, 20)}
+# Per finger, the indices of the hand landmarks its bones follow (wrist first: the finger's first bone leaves
+# the palm); the landmarks are `HAND21`'s joints.
+FINGERS = {finger: tuple(HAND21.index(j) for j in chain) for finger, chain in FINGER_JOINTS.items()}
 # FaceLandmarker's blendshapes in its output order ("_neutral", then the 51 ARKit face-tracking names) and
 # the VRM presets they drive: one table in the package data, which the page bundles too.
 BLENDSHAPE_TABLE = MappingProxyType(json.loads(

@@ -1,5 +1,5 @@
-"""Skeleton hierarchies (Kinect-20 of the KinÊtre paper, OpenNI-17 of the avateering paper's Fig. 3) and the
-`Skeleton` frame: joint positions plus a tracked mask."""
+"""Skeleton hierarchies (Kinect-20 of the KinÊtre paper, OpenNI-17 of the avateering paper's Fig. 3, MediaPipe's
+21-landmark hand) and the `Skeleton` frame: joint positions plus a tracked mask."""
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -16,7 +16,7 @@ class SkeletonModel:
     Attributes
     ----------
     name : str
-        "kinect20", "openni17", "mediapipe33", or a generic name (e.g. a BVH file's).
+        "kinect20", "openni17", "hand21", or a generic name (e.g. a BVH file's).
     joints : tuple of str
         Joint names, in order.
     parents : tuple of int
@@ -75,7 +75,17 @@ OPENNI17 = _model("openni17", [
     ("RightHip", "Torso"), ("RightKnee", "RightHip"), ("RightFoot", "RightKnee"),
 ])
 
-MODELS = {m.name: m for m in (KINECT20, OPENNI17)}
+# MediaPipe HandLandmarker's 21 landmarks in its order: the wrist, then four joints per finger from the palm
+# out; each finger is a chain hanging from the wrist, so the hand has 20 bones (5 of them across the palm).
+FINGER_JOINTS = {"thumb": ("thumb_cmc", "thumb_mcp", "thumb_ip", "thumb_tip"),
+           "index": ("index_mcp", "index_pip", "index_dip", "index_tip"),
+           "middle": ("middle_mcp", "middle_pip", "middle_dip", "middle_tip"),
+           "ring": ("ring_mcp", "ring_pip", "ring_dip", "ring_tip"),
+           "little": ("pinky_mcp", "pinky_pip", "pinky_dip", "pinky_tip")}
+HAND21 = _model("hand21", [("wrist", None)] + [(joint, chain[k - 1] if k else "wrist")
+                                                for chain in FINGER_JOINTS.values() for k, joint in enumerate(chain)])
+
+MODELS = {m.name: m for m in (KINECT20, OPENNI17, HAND21)}
 
 
 @dataclass(frozen=True, eq=False)

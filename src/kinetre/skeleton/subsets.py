@@ -1,11 +1,11 @@
-"""Named joint subsets ("left arm", "upper body", …) that choose which joints drive the mesh (KinÊtre paper,
-"Constraints")."""
+"""Named joint subsets ("left arm", "upper body", …; a hand's "index", "fingers", …) that choose which joints
+drive the mesh (KinÊtre paper, "Constraints")."""
 from __future__ import annotations
 
 import numpy as np
 
 from ..errors import BadSkeletonError
-from .models import KINECT20, OPENNI17, SkeletonModel
+from .models import FINGER_JOINTS, HAND21, KINECT20, OPENNI17, SkeletonModel
 
 # Kinect-20 names; other models are mapped through _ALIASES below.
 _LEFT_ARM = ("ShoulderLeft", "ElbowLeft", "WristLeft", "HandLeft")
@@ -27,6 +27,14 @@ SUBSETS: dict[str, tuple[str, ...]] = {
     "whole body": KINECT20.joints,
 }
 
+# A hand (HAND21): each finger by name (the little finger is also MediaPipe's "pinky"), every finger, the palm
+# (the wrist and the finger bases).
+HAND_SUBSETS: dict[str, tuple[str, ...]] = {
+    **FINGER_JOINTS, "pinky": FINGER_JOINTS["little"],
+    "fingers": tuple(j for chain in FINGER_JOINTS.values() for j in chain),
+    "palm": ("wrist",) + tuple(chain[0] for chain in FINGER_JOINTS.values()),
+}
+
 _OPENNI_FROM_KINECT = {
     "HipCenter": "Torso", "Spine": "Torso", "ShoulderCenter": "Neck", "Head": "Head",
     "ShoulderLeft": "LeftShoulder", "ElbowLeft": "LeftElbow", "WristLeft": "LeftWrist", "HandLeft": "LeftWrist",
@@ -37,16 +45,18 @@ _OPENNI_FROM_KINECT = {
 }
 
 
-def subset_names() -> tuple[str, ...]:
-    return tuple(SUBSETS)
+def subset_names(model: SkeletonModel = KINECT20) -> tuple[str, ...]:
+    """The subset names `subset_mask` takes for `model`."""
+    return tuple(HAND_SUBSETS if model.name == HAND21.name else SUBSETS)
 
 
 def subset_mask(model: SkeletonModel, subset: str | list[str] | tuple[str, ...] | None) -> np.ndarray:
     """(J,) bool mask of the joints of `model` in `subset`.
 
     `subset` is a name from SUBSETS ("left arm", …), a list of names and/or joint names (a user
-    list, e.g. ["HipCenter", "right arm"]), or None for the whole body. A generic model (BVH,
-    animal) accepts its own joint names, and "whole body".
+    list, e.g. ["HipCenter", "right arm"]), or None for the whole body. A hand takes the names of
+    HAND_SUBSETS ("index", "fingers", ...) instead. A generic model (BVH, animal) accepts its own joint
+    names, and "whole body".
     """
     j = len(model.joints)
     if subset is None:
@@ -58,8 +68,11 @@ def subset_mask(model: SkeletonModel, subset: str | list[str] | tuple[str, ...] 
             mask[model.joints.index(item)] = True
             continue
         key = item.strip().lower()
-        if key in ("whole body", "all", "body"):
+        if key in ("whole body", "all", "body", "whole hand", "hand"):
             mask[:] = True
+            continue
+        if model.name == HAND21.name and key in HAND_SUBSETS:
+            mask[[model.joints.index(n) for n in HAND_SUBSETS[key]]] = True
             continue
         if key in SUBSETS:
             names = SUBSETS[key]
@@ -76,5 +89,6 @@ def subset_mask(model: SkeletonModel, subset: str | list[str] | tuple[str, ...] 
             mask[lowered.index(key)] = True
             continue
         raise BadSkeletonError(
-            f"unknown joint subset {item!r}: expected one of {', '.join(SUBSETS)} or a joint of {model.name!r}")
+            f"unknown joint subset {item!r}: expected one of {', '.join(subset_names(model))} or a joint of "
+            f"{model.name!r}")
     return mask
