@@ -12,8 +12,10 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import TYPE_CHECKING
+
+import numpy as np
 
 from .deform.pose import GraphPose
 from .errors import BadSettingsError
@@ -50,6 +52,8 @@ class AnimateSettings:
     up : the mesh's up axis: "auto" (+Y up when the source's skeleton stands inside it as stored; else
         glTF/VRM are +Y up by spec and other meshes stand on the axis found from their shape,
         `kinetre.mesh.upright`), or the stored axis to turn up: "y" (as stored), "z", "x", "-x", "-y", "-z"
+    hang : a hand (`HAND21`) is turned first so its fingertips hang below its palm in the bind frame, its
+        fingers the mesh's legs (False: fitted as held)
     """
 
     nodes: int = 256
@@ -62,6 +66,7 @@ class AnimateSettings:
     flip: bool = False
     solve: bool = True
     up: str = "auto"
+    hang: bool = True
 
 
 @dataclass(frozen=True)
@@ -156,11 +161,15 @@ def animate(mesh: Mesh, take: Take, settings: AnimateSettings = AnimateSettings(
         yaw = (s.yaw or 0.0) + (180.0 if s.flip else 0.0)
         placement = fit_take(take, mesh, s.bind_frame, fit_mesh=fit_mesh, yaw=yaw)
         notes: tuple[str, ...] = ()
-    else:  # any other skeleton: from the two shapes
+    else:  # any other skeleton (a hand, hung by its fingers first): from the two shapes
         from .motion.align import fit_shapes
-        shape = fit_shapes(take, mesh, s.bind_frame, fit=s.fit if s.fit in ("height", "length") else "auto",
-                           yaw=s.yaw or 0.0, flip=s.flip, fit_mesh=fit_mesh, nodes=graph.nodes)
+        from .motion.hands import hang_rotation
+        hang = hang_rotation(take.frame(s.bind_frame)) if s.hang else np.eye(3)
+        shape = fit_shapes(take.transformed(1.0, hang), mesh, s.bind_frame,
+                           fit=s.fit if s.fit in ("height", "length") else "auto", yaw=s.yaw or 0.0, flip=s.flip,
+                           fit_mesh=fit_mesh, nodes=graph.nodes)
         placement, notes = shape.placement, tuple(shape.notes)
+        placement = replace(placement, rotation=placement.rotation @ hang)
     step("placement")
     placed = placement.take(take)
     solve_graph = placement.graph(graph)

@@ -25,6 +25,13 @@ def register(sub) -> None:
     p.add_argument("--motion", required=True, action="append",
                    help="motion: .bvh, .kinetre.jsonl, a video, or a glTF animation (Fox.glb#Walk, Fox.glb#1); "
                         "repeat it with --map to join several sources")
+    p.add_argument("--hand", action="append", choices=("left", "right"), default=None,
+                   help="drive with a camera take's left or right hand instead of the body: its 21 landmarks "
+                        "as a skeleton, the fingers as the mesh's legs (a hand puppet); with --map, repeat it "
+                        "(--hand left --hand right) for one source per hand")
+    p.add_argument("--as-held", dest="hang", action="store_false",
+                   help="--hand: fit the hand as it is held (by default it is turned so its fingertips hang "
+                        "below its palm)")
     p.add_argument("--map", default=None, metavar="JSON",
                    help="joint map: rename, drop and pair the joints of the --motion sources (docs/joint-maps.md)")
     p.add_argument("-o", "--output", required=True, help=f"output: {' '.join(ANIMATE_OUTPUTS)}")
@@ -119,6 +126,12 @@ def _animate(args, stats: dict | None) -> int:
         take = take.slice(0, max(1, args.max_frames))
     if not -len(take) <= args.bind_frame < len(take):
         raise UsageError(f"--bind-frame {args.bind_frame} is outside the take's {len(take)} frames")
+    if args.hand and not take.tracked[args.bind_frame].any():
+        from ..motion.hands import first_seen
+        first = first_seen(take)
+        raise UsageError(f"{motion_label}: the hand is not seen in the bind frame {args.bind_frame}"
+                         + (f"; it is first seen in frame {first}: try --bind-frame {first}" if first >= 0 else
+                            " nor in any frame of --frames"))
     lap("load")
     say(f"mesh {args.mesh}: {len(mesh.vertices)} vertices, {len(mesh.faces)} faces")
     say(f"motion {motion_label}: {take.model.name}, {len(take.model.joints)} joints, {len(take)} frames "
@@ -126,7 +139,8 @@ def _animate(args, stats: dict | None) -> int:
 
     settings = AnimateSettings(nodes=args.nodes, seed=args.seed, subset=_subset(args.subset),
                                bind_frame=args.bind_frame, solver=args.solver, fit=args.fit, yaw=args.yaw,
-                               flip=args.flip, solve=out_ext not in (".bvh", ".kinetre.jsonl"), up=args.up)
+                               flip=args.flip, solve=out_ext not in (".bvh", ".kinetre.jsonl"), up=args.up,
+                               hang=args.hang)
     with _bar(3, "rigging", args.quiet) as rigging, _bar(len(take), "solving", args.quiet) as solving:
         rigging.unit = "step"
         result = animate(mesh, take, settings, on_frame=lambda i: solving.update(1),
@@ -178,24 +192,38 @@ def _animate(args, stats: dict | None) -> int:
 
 
 def _load_motions(args):
-    """The take `kinetre animate` drives with, and a label: one --motion, or several joined by --map."""
+    """The take `kinetre animate` drives with, and a label: one --motion (or one of its hands), or several
+    sources (motions, or their hands) joined by --map."""
     motions = args.motion if isinstance(args.motion, list) else [args.motion]
+    hands = args.hand or []
+    if hands:
+        from ..motion.hands import hand_take
     if any(m.lower().endswith(VIDEO_EXTS) for m in motions):
         quiet_mediapipe()
     if len(motions) > 1 and args.map is None:
         raise UsageError(f"{len(motions)} --motion given: a --map JSON says how they share the mesh "
                          f"(see docs/joint-maps.md)")
+    if len(hands) > 1 and args.map is None:
+        raise UsageError(f"{len(hands)} --hand given: a --map JSON says how the hands share the mesh "
+                         f"(see docs/joint-maps.md)")
     if args.map is None:
         take = load_motion(motions[0], args.scale, as_kinect=not args.own_skeleton)
-        if args.person is not None:
-            return take.person(args.person), f"{motions[0]} (person {args.person})"
-        return take, motions[0]
+        who = "" if args.person is None else f"person {args.person}"
+        if hands:
+            take = hand_take(take, hands[0], args.person, motions[0])
+            who = f"{hands[0]} hand" + (f" of {who}" if who else "")
+        elif args.person is not None:
+            take = take.person(args.person)
+        return take, f"{motions[0]} ({who})" if who else motions[0]
     if args.person is not None:
         raise UsageError("--person picks one person; with --map each map entry takes a motion or a person")
     from ..motion.jointmap import join_takes, read_joint_map
     jmap = read_joint_map(args.map)
     takes = [load_motion(m, args.scale, as_kinect=not args.own_skeleton) for m in motions]
-    return join_takes(takes, jmap), f"{' + '.join(motions)} via {args.map}"
+    if hands:  # one source per hand of each motion, in the order given
+        takes = [hand_take(t, side, where=m) for m, t in zip(motions, takes) for side in hands]
+    label = " + ".join(f"{m} ({side} hand)" for m in motions for side in hands) if hands else " + ".join(motions)
+    return join_takes(takes, jmap), f"{label} via {args.map}"
 
 
 def _write_skeleton(path: str, ext: str, take) -> None:

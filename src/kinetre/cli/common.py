@@ -14,6 +14,7 @@ EPILOG = """examples:
   kinetre animate horse.ply --motion Fox.glb#Walk -o horse.glb
   kinetre animate horse.ply --motion a.bvh --motion b.bvh --map two-people.json -o horse.glb
   kinetre animate frames/ --motion walk.bvh -o scan_walk.glb
+  kinetre animate spider.obj --motion take.kinetre.jsonl --hand right -o spider.glb
   kinetre info Fox.glb
   kinetre capture --video clip.mp4 -o take.kinetre.jsonl
   kinetre capture --camera 0 --seconds 10 -o take.kinetre.jsonl

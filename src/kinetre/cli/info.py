@@ -108,6 +108,30 @@ def _info_take(take, kind: str) -> None:
     print(f"  joints: {', '.join(take.model.joints)}")
     if kind == "recorded take":
         _print_take_map(take)
+    if take.hands is not None:
+        _print_hands(take)
+
+
+def _print_hands(take) -> None:
+    """Each person's hands: in how many frames each is seen, their size, and the hand map `--hand` drives by."""
+    import numpy as np
+
+    from ..motion.hands import SIDES, hand_length
+    seen = np.isfinite(take.hands).all(axis=(3, 4))  # (T, P, 2)
+    print("  hands (--hand left|right [--person ID] drives a mesh by one of them):")
+    for k, pid in enumerate(take.people):
+        sides = [f"{side} in {int(seen[:, k, i].sum())} frames ({100 * hand_length(take.hands[:, k, i]):.0f} cm)"
+                 if seen[:, k, i].any() else f"{side} never" for i, side in enumerate(SIDES)]
+        print(f"    person {pid}: {', '.join(sides)}")
+    _print_hand_map()
+
+
+def _print_hand_map() -> None:
+    """The hand skeleton: each finger's chain from the wrist, as its bones drive a mesh."""
+    from ..skeleton.models import FINGER_JOINTS
+    print("  hand map: MediaPipe's 21 hand landmarks, 20 bones; fitted to a mesh from the shapes, fingers as legs")
+    for finger, chain in FINGER_JOINTS.items():
+        print(f"    {finger}: {' -> '.join(('wrist',) + chain)}")
 
 
 def _print_take_map(take) -> None:
@@ -116,6 +140,8 @@ def _print_take_map(take) -> None:
     name = take.model.name
     if name == "kinect20":
         print("  Kinect-20 map: the take's own joints (Kinect-20)")
+    elif name == "hand21":
+        _print_hand_map()
     elif name == "openni17":
         print("  Kinect-20 map: from OpenNI-17 by its fixed table; HandLeft, HandRight, FootLeft, FootRight untracked "
               "(OpenNI has no hands and feet)")

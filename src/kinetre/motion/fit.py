@@ -31,7 +31,7 @@ class Placement:
     mesh_scale : float
         k: the mesh (and its graph) in the solve frame is k * vertices (metres of the skeleton).
     rotation : (3, 3) float64
-        Turn about +Y applied to the skeleton.
+        Turn applied to the skeleton: about +Y (a hand is also turned to hang by its fingers first).
     translation : (3,) float64
         Then added to the skeleton: x -> rotation @ x + translation, in the solve frame.
     output_scale : float

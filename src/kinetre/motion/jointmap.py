@@ -28,7 +28,7 @@ from .fit import yaw_rotation
 from .source import resample
 from .take import Take
 
-_KEYS = {"keep", "drop", "rename", "offset", "yaw", "parent"}
+_KEYS = {"keep", "drop", "rename", "prefix", "offset", "yaw", "parent"}
 
 
 @dataclass(frozen=True)
@@ -43,6 +43,8 @@ class SourceMap:
         Joint or subset names left out (after `keep`).
     rename : dict
         Old joint name -> new name in the joined skeleton.
+    prefix : str
+        Put before the name of every kept joint `rename` does not name (two hands: "left_", "right_").
     offset : (3,) float64
         Added to every position of the source (its units: metres for people), after `yaw`.
     yaw : float
@@ -55,6 +57,7 @@ class SourceMap:
     keep: tuple[str, ...] | None = None
     drop: tuple[str, ...] = ()
     rename: dict = field(default_factory=dict)
+    prefix: str = ""
     offset: np.ndarray = field(default_factory=lambda: np.zeros(3))
     yaw: float = 0.0
     parent: dict = field(default_factory=dict)
@@ -124,10 +127,13 @@ def parse_joint_map(obj, where: str = "joint map") -> JointMap:
         if not (isinstance(yaw, (int, float)) and math.isfinite(yaw)):
             raise BadMotionError(f"{at}: 'yaw' must be a number of degrees, got {yaw!r}")
         rename = _mapping(entry.get("rename", {}), "rename", at)
+        prefix = entry.get("prefix", "")
+        if not isinstance(prefix, str):
+            raise BadMotionError(f"{at}: 'prefix' must be a string, got {prefix!r}")
         if len(set(rename.values())) != len(rename):
             raise BadMotionError(f"{at}: 'rename' gives two joints the same new name")
         out.append(SourceMap(_names(entry["keep"], "keep", at) if "keep" in entry else None,
-                             _names(entry.get("drop", []), "drop", at), rename,
+                             _names(entry.get("drop", []), "drop", at), rename, prefix,
                              np.array(offset, dtype=np.float64), float(yaw),
                              _mapping(entry.get("parent", {}), "parent", at)))
     return JointMap(tuple(out), where)
@@ -182,7 +188,7 @@ def join_takes(takes: list[Take], jmap: JointMap) -> Take:
         base = len(names)
         index = {}
         for j in np.flatnonzero(keep):
-            new = smap.rename.get(model.joints[j], model.joints[j])
+            new = smap.rename.get(model.joints[j], smap.prefix + model.joints[j])
             if new in names:
                 raise BadMotionError(f"{at}: joint name {new!r} is kept twice; rename or drop one")
             p = model.parents[j]
