@@ -12,10 +12,8 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 from typing import TYPE_CHECKING
-
-import numpy as np
 
 from .deform.pose import GraphPose
 from .errors import BadSettingsError
@@ -161,15 +159,16 @@ def animate(mesh: Mesh, take: Take, settings: AnimateSettings = AnimateSettings(
         yaw = (s.yaw or 0.0) + (180.0 if s.flip else 0.0)
         placement = fit_take(take, mesh, s.bind_frame, fit_mesh=fit_mesh, yaw=yaw)
         notes: tuple[str, ...] = ()
-    else:  # any other skeleton (a hand, hung by its fingers first): from the two shapes
+    else:  # any other skeleton: from the two shapes (a hand turned to hang by its fingers first)
         from .motion.align import fit_shapes
-        from .motion.hands import hang_rotation
-        hang = hang_rotation(take.frame(s.bind_frame)) if s.hang else np.eye(3)
-        shape = fit_shapes(take.transformed(1.0, hang), mesh, s.bind_frame,
-                           fit=s.fit if s.fit in ("height", "length") else "auto", yaw=s.yaw or 0.0, flip=s.flip,
-                           fit_mesh=fit_mesh, nodes=graph.nodes)
+        from .motion.hands import fit_hand
+        options = {"fit": s.fit if s.fit in ("height", "length") else "auto", "yaw": s.yaw or 0.0,
+                   "flip": s.flip, "fit_mesh": fit_mesh, "nodes": graph.nodes}
+        if take.model == kinetre.HAND21:
+            shape = fit_hand(take, mesh, s.bind_frame, hang=s.hang, **options)
+        else:
+            shape = fit_shapes(take, mesh, s.bind_frame, **options)
         placement, notes = shape.placement, tuple(shape.notes)
-        placement = replace(placement, rotation=placement.rotation @ hang)
     step("placement")
     placed = placement.take(take)
     solve_graph = placement.graph(graph)

@@ -167,23 +167,33 @@ def test_a_hand_held_up_is_turned_so_its_fingers_hang():
     np.testing.assert_allclose(turn @ turn.T, np.eye(3), atol=1e-12)
 
 
-def test_each_finger_walks_its_own_leg_of_a_five_legged_creature(creature):
-    mesh, feet = creature
-    # frame 0 is the bind pose; in frame f + 1 finger f alone straightens from 30° to 8° a joint: its tip lifts
-    # up and out, the others stay
+def _finger_frames() -> np.ndarray:
+    """(6, 21, 3) frame 0 the bind pose; in frame f + 1 finger f alone straightens from 30° to 8° a joint: its
+    tip lifts up and out, the others stay."""
     frames = [spread_hand(np.full(5, REST))]
     for f in range(5):
         curl = np.full(5, REST)
         curl[f] = np.radians(8.0)
         frames.append(spread_hand(curl))
-    take = Take(HAND21, np.stack(frames), np.ones((6, 21), bool), 10.0, "hand")
+    return np.stack(frames)
+
+
+def _tips_to_feet(result, feet) -> np.ndarray:
+    """(5, 5) distances from each placed fingertip in the bind frame to each leg's tip (the mesh's units)."""
+    return np.linalg.norm(result.take.positions[0, TIPS][:, None] - feet[None], axis=2)
+
+
+def test_each_finger_walks_its_own_leg_of_a_five_legged_creature(creature):
+    mesh, feet = creature
+    take = Take(HAND21, _finger_frames(), np.ones((6, 21), bool), 10.0, "hand")
     result = animate(mesh, take, AnimateSettings(nodes=128))
     assert result.placement.method == "shapes" and result.upright.up == "y" and not result.notes
     placed = result.take.positions                    # the hand in the mesh's units
-    # the fit put every fingertip in its own leg: the nearest leg tip, within a leg's thickness
-    d = np.linalg.norm(placed[0, TIPS][:, None] - feet[None], axis=2)
+    # the fit put every fingertip in its own leg: the nearest leg tip, within a leg's thickness (0.066; the
+    # legs are 0.5 long)
+    d = _tips_to_feet(result, feet)
     assert d.argmin(axis=1).tolist() == [0, 1, 2, 3, 4], np.round(d, 3)
-    assert d.min(axis=1).max() < 0.1, np.round(d.min(axis=1), 3)   # the legs are 0.066 thick, 0.5 long
+    assert d.min(axis=1).max() < 0.1, np.round(d.min(axis=1), 3)
     rest = kinetre.skin(result.mesh, result.graph, result.poses[0])
     np.testing.assert_allclose(rest, mesh.vertices, atol=1e-3 * np.ptp(mesh.vertices, axis=0).max())
     feet_at = [np.linalg.norm(mesh.vertices - foot, axis=1) < 0.09 for foot in feet]
@@ -196,6 +206,22 @@ def test_each_finger_walks_its_own_leg_of_a_five_legged_creature(creature):
         assert cosine > 0.95 and 0.6 < ratio < 1.3, f"finger {f}: cos {cosine:.3f}, leg/finger {ratio:.2f}"
         others = max(np.linalg.norm(moved[feet_at[g]].mean(axis=0)) for g in range(5) if g != f)
         assert others < 0.2 * np.linalg.norm(tip), f"finger {f} moves another leg by {others:.3f}"
+
+
+def test_a_hand_held_up_is_turned_over_to_walk_the_creature(creature):
+    mesh, feet = creature
+    # the same hand held up to a camera: fingers up, leaning away from it
+    a = np.radians(160.0)
+    up = _finger_frames() @ np.array([[1.0, 0.0, 0.0], [0.0, np.cos(a), -np.sin(a)], [0.0, np.sin(a), np.cos(a)]]).T
+    take = Take(HAND21, up, np.ones((6, 21), bool), 10.0, "hand")
+    turned = _tips_to_feet(animate(mesh, take, AnimateSettings(nodes=64, solve=False)), feet)
+    held = _tips_to_feet(animate(mesh, take, AnimateSettings(nodes=64, solve=False, hang=False)), feet)
+    # turned over, every fingertip lands in its own leg (the hand hangs straight down where the creature's
+    # legs lean out 25°, so a tip may sit a little off its leg's end); as held, the fingers point up, the
+    # legs down: no fingertip is near any leg's tip
+    assert turned.argmin(axis=1).tolist() == [0, 1, 2, 3, 4], np.round(turned, 3)
+    assert turned.min(axis=1).max() < 0.2, np.round(turned.min(axis=1), 3)
+    assert held.min(axis=1).min() > 0.2, np.round(held.min(axis=1), 3)
 
 
 @pytest.fixture(scope="module")

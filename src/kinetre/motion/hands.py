@@ -14,11 +14,15 @@ puts the fingers in the mesh's legs.
 """
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 
 from ..errors import BadMotionError
+from ..mesh.mesh import Mesh
 from ..rotation import minimal_rotations
 from ..skeleton.models import FINGER_JOINTS, HAND21, Skeleton
+from .align import ShapeFit, fit_shapes
 from .take import Take
 
 SIDES = ("left", "right")  # the order of `Take.hands`' hands
@@ -98,3 +102,12 @@ def hang_rotation(frame: Skeleton) -> np.ndarray:
     if not length > 1e-12 or -down[1] / length >= np.cos(np.radians(HANGS)):
         return np.eye(3)
     return minimal_rotations(down, np.array([0.0, -1.0, 0.0]))
+
+
+def fit_hand(take: Take, mesh: Mesh, bind_frame: int = 0, hang: bool = True, **options) -> ShapeFit:
+    """`align.fit_shapes` for a hand: turned over first (`hang_rotation` of the bind frame) unless `hang` is
+    False; the placement's rotation includes that turn. `options` go to `fit_shapes` (fit, yaw, flip,
+    fit_mesh, nodes)."""
+    turn = hang_rotation(take.frame(bind_frame)) if hang else np.eye(3)
+    shape = fit_shapes(take.transformed(1.0, turn), mesh, bind_frame, **options)
+    return replace(shape, placement=replace(shape.placement, rotation=shape.placement.rotation @ turn))
