@@ -17,7 +17,7 @@ from kinetre.animation import AnimateSettings, animate
 from kinetre.errors import BadMotionError
 from kinetre.mesh.load import mesh_from_trimesh
 from kinetre.motion.fit import yaw_rotation
-from kinetre.motion.hands import HAND_LENGTH, hand_length, hand_take, hang_rotation
+from kinetre.motion.hands import HAND_LENGTH, hand_length, hand_take, hang_rotation, puppet_transform
 from kinetre.motion.stream import read_stream, write_stream
 from kinetre.motion.take import Take
 from kinetre.skeleton.models import FINGER_JOINTS, HAND21, MODELS, Skeleton
@@ -306,3 +306,14 @@ def test_two_hands_share_a_mesh_through_a_joint_map(captured, data_dir, tmp_path
     assert np.ptp(ratio) < 1e-6 * ratio.mean()
     apart = np.linalg.norm(both[0] - both[21])
     assert 0.1 < apart < 0.8, f"the wrists are {apart:.2f} m apart"
+
+
+def test_a_live_hand_is_put_in_the_mesh_in_its_own_frame(creature):
+    mesh, feet = creature
+    hand = Skeleton.from_positions(HAND21, spread_hand(np.full(5, REST)) + [0.3, 1.2, -0.5])  # a webcam's metres
+    scale, turn, shift = puppet_transform(hand, mesh)
+    inside = scale * hand.positions @ turn.T + shift
+    d = np.linalg.norm(inside[TIPS][:, None] - feet[None], axis=2)
+    assert d.argmin(axis=1).tolist() == [0, 1, 2, 3, 4] and d.min(axis=1).max() < 0.1, np.round(d, 3)
+    np.testing.assert_allclose(turn @ turn.T, np.eye(3), atol=1e-12)
+    assert scale == pytest.approx(3.0, rel=0.3)   # the creature is 3x the hand

@@ -45,6 +45,8 @@ def test_two_people_keep_their_ids_whatever_order_they_are_detected_in(bundle):
     sent = [m for o in out for m in o["sent"]]
     assert {m["person"] for m in sent} == {2} and [m["seq"] for m in sent] == list(range(1, 21))
     assert last["possess"] == [{"type": "possess", "person": 2, "subset": None}]
+    # a hand puppet: the hand possesses, no body subset goes with it
+    assert last["possessByHand"] == [{"type": "possess", "person": 2, "subset": None, "hand": "right"}]
     assert last["release"] == [{"type": "release", "person": 2}]
 
 

@@ -111,3 +111,14 @@ def fit_hand(take: Take, mesh: Mesh, bind_frame: int = 0, hang: bool = True, **o
     turn = hang_rotation(take.frame(bind_frame)) if hang else np.eye(3)
     shape = fit_shapes(take.transformed(1.0, turn), mesh, bind_frame, **options)
     return replace(shape, placement=replace(shape.placement, rotation=shape.placement.rotation @ turn))
+
+
+def puppet_transform(hand: Skeleton, mesh: Mesh, nodes: np.ndarray | None = None,
+                     hang: bool = True) -> tuple[float, np.ndarray, np.ndarray]:
+    """(scale, rotation, translation) that put one hand frame (a live user's, at possession) inside `mesh`, in
+    the mesh's own frame and units, as `fit_hand` places a take's bind frame: x -> scale * rotation @ x +
+    translation. `nodes`: the mesh's graph nodes (see `align.fit_shapes`)."""
+    one = Take(HAND21, hand.positions[None], hand.tracked[None], 1.0, "hand")
+    placement = fit_hand(one, mesh, 0, hang, nodes=nodes).placement
+    k = placement.mesh_scale  # the solve frame is the mesh scaled by k
+    return placement.skeleton_scale / k, placement.rotation, placement.translation / k

@@ -1,7 +1,8 @@
 // Run the page's People (web/src/app/People.ts, with PersonTracks, bundled by esbuild into BUNDLE) on a
 // fixture: {frames: [{t, width, height, centres: [[x, y] per person]}]} from stdin, each person a standing
 // figure of 33 landmarks around their torso centre. Prints, per frame, the ids in detection order, the main
-// person, the messages sent for the other people, and what Possess and Release would send.
+// person, the messages sent for the other people, and what Possess (by the body, and by the right hand) and
+// Release would send.
 // Usage: node people_ts.mjs BUNDLE.mjs < fixture.json
 import { readFileSync } from "node:fs";
 import { pathToFileURL } from "node:url";
@@ -29,6 +30,7 @@ const out = fixture.frames.map((f) => {
     main: people.main,
     sent: sent.slice(before).map((m) => ({ person: m.person, seq: m.seq, tracked: m.tracked.filter(Boolean).length })),
     possess: people.possessMessages(null),
+    possessByHand: people.possessMessages("legs", "right"),
     release: people.releaseMessages(),
     user: people.ids.map((id) => people.user("c7", id)),
   };

@@ -6,6 +6,7 @@
 import type { Detection, PoseLandmarks } from '../capture/detection';
 import { KinectMapper, type KinectFrame } from '../capture/KinectMapper';
 import { PersonTracks, distinctPoses } from '../capture/PersonTracks';
+import { possessMessage, type PuppetHand } from '../rigging/PuppetControl';
 
 export interface PersonFrame {
   id: number;
@@ -61,9 +62,10 @@ export class People {
     return this.ids.filter((id) => id !== this.main);
   }
 
-  /** Possess after the page's own user: the others in id order (a joint map gives them its later sources). */
-  possessMessages(subset: string | null): object[] {
-    return this.others.map((person) => ({ type: 'possess', person, subset }));
+  /** Possess after the page's own user: the others in id order (a joint map gives them its later sources), each
+   * by the body with `subset` or by their `hand`. */
+  possessMessages(subset: string | null, hand: PuppetHand = null): object[] {
+    return this.others.map((person) => possessMessage(subset, hand, person));
   }
 
   /** Release every person this page ever sent, in view or not. */

@@ -20,7 +20,8 @@ export function statusLine(f: StatusFacts): string {
   if (f.sceneLost) parts.push('scene lost');
   if (f.state) {
     parts.push(`${f.state.mesh.name} (${f.state.mesh.nodes} nodes)`);
-    const drivers = f.state.users.filter((u) => u.possessing).map((u) => (u.client === f.client ? 'you' : u.client));
+    const drivers = f.state.users.filter((u) => u.possessing)
+      .map((u) => (u.client === f.client ? 'you' : u.client) + (u.hand ? ` (${u.hand} hand)` : ''));
     parts.push(drivers.length ? `driven by ${drivers.join(' + ')}` : 'nobody possesses the mesh');
     if (f.state.solve_ms !== null) parts.push(`solve ${f.state.solve_ms.toFixed(1)} ms`);
   }

@@ -19,6 +19,7 @@ import { SkinnedGraphMesh } from '../scene/SkinnedGraphMesh';
 import { Viewport } from '../scene/Viewport';
 import { Panel } from '../ui/Panel';
 import { JointMapControl } from '../rigging/JointMapControl';
+import { PuppetControl, possessMessage, puppetFromQuery } from '../rigging/PuppetControl';
 import { UpAxisControl } from '../rigging/UpAxisControl';
 import { VoiceListener, type VoiceResult } from '../voice/VoiceListener';
 import { CaptureLoop, type UserFrame } from './CaptureLoop';
@@ -40,6 +41,7 @@ export class Studio {
   readonly takes: TakeSession;
   readonly uploader: MeshUploader;
   readonly jointMap: JointMapControl;
+  readonly puppet: PuppetControl;
   readonly upAxis: UpAxisControl;
   readonly avatars: AvatarStage;
   readonly physics: Playground;
@@ -67,10 +69,7 @@ export class Studio {
       camera: () => void this.capture.toggle(),
       voice: () => void this.toggleVoice(),
       sample: () => this.socket.send({ type: 'player', on: !this.sampleUser() }),
-      // every person in this camera: the page's own user first, then the others in id order (a joint
-      // map gives them its sources in that order)
-      possess: () => [{ type: 'possess', subset: this.panel.subset },
-        ...this.capture.people.possessMessages(this.panel.subset)].forEach((m) => this.socket.send(m)),
+      possess: () => this.possess(),
       release: () => [{ type: 'release' }, ...this.capture.people.releaseMessages()].forEach((m) => this.socket.send(m)),
       subset: (name) => this.socket.send({ type: 'subset', subset: name }),
       fit: () => this.socket.send({ type: 'fit' }),
@@ -108,6 +107,9 @@ export class Studio {
     }, (file) => this.avatars.tryUpload(file));
     this.uploader.bind(root, this.panel.fileInput);
     this.jointMap = new JointMapControl(this.panel.area('body'), say);
+    // a hand chosen while possessing takes over from the body (or the other hand) at once
+    this.puppet = new PuppetControl(this.panel.area('body').querySelector('#body-drive') as HTMLElement,
+      puppetFromQuery(new URLSearchParams(location.search)), () => { if (this.possessing) this.possess(); });
     this.upAxis = new UpAxisControl(this.panel.area('scene'), say);
 
     const url = `${location.protocol === 'https:' ? 'wss' : 'ws'}://${location.host}${location.pathname.replace(/[^/]*$/, '')}ws`;
@@ -277,6 +279,13 @@ export class Studio {
       this.me.updatedAt = now;
     }
     if (this.viewport.frames % 15 === 0) this.updateStatus();
+  }
+
+  /** Possess with every person in this camera: the page's own user first, then the others in id order (a
+   * joint map gives them its sources in that order), by their bodies or the hand the panel chose. */
+  possess(): void {
+    const { subset } = this.panel, hand = this.puppet.hand;
+    [possessMessage(subset, hand), ...this.capture.people.possessMessages(subset, hand)].forEach((m) => this.socket.send(m));
   }
 
   get possessing(): boolean {

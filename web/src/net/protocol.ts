@@ -18,6 +18,7 @@ export interface UserState {
   client: string;
   possessing: boolean;
   subset: string | string[] | null;
+  hand?: 'left' | 'right' | null; // the hand that possesses (a hand puppet), null for the body
   frames: number;
   attached: number[];
 }

@@ -37,6 +37,7 @@ export function installTestHook(studio: Studio): void {
         trackingLost: studio.capture.trackingLost,
         framesSent: studio.socket.sentFrames,
         possessing: studio.possessing,
+        puppet: studio.puppet.hand,
         attachableJoints: studio.preview?.attachableJoints.filter(Boolean).length ?? 0,
         users: studio.state?.users ?? [],
         meshUp: studio.state?.mesh.up ?? null,
