@@ -6,17 +6,15 @@ import re
 
 import numpy as np
 import pytest
-import trimesh
 from scipy.spatial.distance import pdist
 from export.gltf_player import GltfPlayer
-from synthetic import tpose
+from synthetic import PHALANX, REST, hand_creature, spread_hand, tpose
 
 import kinetre
 from kinetre.cli import main
 from kinetre.animation import AnimateSettings, animate
 from kinetre.errors import BadMotionError
 from kinetre.mesh.load import mesh_from_trimesh
-from kinetre.motion.fit import yaw_rotation
 from kinetre.motion.hands import HAND_LENGTH, hand_length, hand_take, hang_rotation, puppet_transform
 from kinetre.motion.stream import read_stream, write_stream
 from kinetre.motion.take import Take
@@ -26,69 +24,11 @@ MEDIAPIPE_ORDER = ("wrist", "thumb_cmc", "thumb_mcp", "thumb_ip", "thumb_tip", "
                    "index_dip", "index_tip", "middle_mcp", "middle_pip", "middle_dip", "middle_tip", "ring_mcp",
                    "ring_pip", "ring_dip", "ring_tip", "pinky_mcp", "pinky_pip", "pinky_dip", "pinky_tip")
 TIPS = [HAND21.index(chain[-1]) for chain in FINGER_JOINTS.values()]
-SPLAY = np.radians([95.0, 40.0, 0.0, -35.0, -70.0])  # thumb .. little finger, about +Y from +Z
-PHALANX = np.array([0.045, 0.03, 0.022])             # metres, knuckle to tip
-REST = np.radians(30.0)                              # each joint bends the finger this far down
-
-
-def spread_hand(curl, wrist=(0.0, 0.12, 0.0)) -> np.ndarray:
-    """(21, 3) a hand held like a spider: palm level, fingers splayed round the wrist, each phalanx bent a
-    further `curl[f]` (radians) down from the one before."""
-    p = np.zeros((21, 3))
-    p[0] = wrist
-    for f, chain in enumerate(FINGER_JOINTS.values()):
-        out = np.array([np.sin(SPLAY[f]), 0.0, np.cos(SPLAY[f])])
-        x = p[0] + 0.035 * out
-        p[HAND21.index(chain[0])] = x
-        for k in range(3):
-            a = (k + 1) * curl[f]
-            x = x + PHALANX[k] * (np.cos(a) * out - np.sin(a) * np.array([0.0, 1.0, 0.0]))
-            p[HAND21.index(chain[k + 1])] = x
-    return p
-
-
-def _segment_distance(p, a, b):
-    ab = b - a
-    t = np.clip((p - a) @ ab / (ab @ ab), 0.0, 1.0)
-    return np.linalg.norm(p - (a + t[:, None] * ab), axis=1)
-
-
-def star_hull(segments, radii, centre, subdivisions=5, steps=120) -> trimesh.Trimesh:
-    """One connected surface round a union of capsules: a sphere's vertices pushed out along their rays from
-    `centre` to the farthest point still inside a capsule."""
-    sphere = trimesh.creation.icosphere(subdivisions=subdivisions)
-    dirs = sphere.vertices / np.linalg.norm(sphere.vertices, axis=1, keepdims=True)
-    reach = max(max(np.linalg.norm(a - centre), np.linalg.norm(b - centre)) + r for (a, b), r in zip(segments, radii))
-    s = np.linspace(0.0, reach, steps)
-    points = (centre + dirs[:, None] * s[None, :, None]).reshape(-1, 3)
-    inside = np.zeros(len(points), bool)
-    for (a, b), r in zip(segments, radii):
-        inside |= _segment_distance(points, a, b) < r
-    inside = inside.reshape(len(dirs), steps)
-    far = s[steps - 1 - np.argmax(inside[:, ::-1], axis=1)]
-    return trimesh.Trimesh(centre + dirs * far[:, None], sphere.faces, process=False)
-
-
 @pytest.fixture(scope="module")
 def creature():
-    """A five-legged creature (one connected surface) shaped like the spread hand, in its own units (3x a
-    hand's metres), turned 60° and moved off the origin: the fit has to find its size, place and turn. Also
-    returns its leg tips."""
-    rest = spread_hand(np.full(5, REST))
-    segments, radii = [], []
-    for chain in FINGER_JOINTS.values():
-        pts = rest[[0] + [HAND21.index(j) for j in chain]]
-        segments.append((pts[0], pts[1]))
-        radii.append(0.03)   # the palm: the body
-        segments += list(zip(pts[1:-1], pts[2:]))
-        radii += [0.011] * 3  # the legs
-    scale, turn, shift = 3.0, yaw_rotation(60.0), np.array([0.4, 0.0, -0.2])
-    hull = star_hull([(scale * a, scale * b) for a, b in segments], scale * np.array(radii),
-                     scale * (rest[0] + [0.0, 0.0, 0.01]))
-    vertices = hull.vertices @ turn.T + shift
-    feet = scale * rest[TIPS] @ turn.T + shift
-    mesh = mesh_from_trimesh(trimesh.Trimesh(vertices, hull.faces, process=False), "creature")
-    return mesh, feet
+    """The five-legged creature (`synthetic.hand_creature`) as a mesh, and its leg tips."""
+    surface, feet = hand_creature()
+    return mesh_from_trimesh(surface, "creature"), feet
 
 
 def test_the_hand_skeleton_is_mediapipes_21_landmarks_with_a_chain_per_finger():
