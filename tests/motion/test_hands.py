@@ -15,7 +15,7 @@ from kinetre.cli import main
 from kinetre.animation import AnimateSettings, animate
 from kinetre.errors import BadMotionError
 from kinetre.mesh.load import mesh_from_trimesh
-from kinetre.motion.hands import HAND_LENGTH, hand_length, hand_take, hang_rotation, puppet_transform
+from kinetre.motion.hands import HAND_LENGTH, fit_puppet, hand_length, hand_take, hang_rotation
 from kinetre.motion.stream import read_stream, write_stream
 from kinetre.motion.take import Take
 from kinetre.skeleton.models import FINGER_JOINTS, HAND21, MODELS, Skeleton
@@ -251,9 +251,11 @@ def test_two_hands_share_a_mesh_through_a_joint_map(captured, data_dir, tmp_path
 def test_a_live_hand_is_put_in_the_mesh_in_its_own_frame(creature):
     mesh, feet = creature
     hand = Skeleton.from_positions(HAND21, spread_hand(np.full(5, REST)) + [0.3, 1.2, -0.5])  # a webcam's metres
-    scale, turn, shift = puppet_transform(hand, mesh)
-    inside = scale * hand.positions @ turn.T + shift
+    fitted = fit_puppet(hand, mesh)
+    inside = fitted.place(hand).positions
     d = np.linalg.norm(inside[TIPS][:, None] - feet[None], axis=2)
     assert d.argmin(axis=1).tolist() == [0, 1, 2, 3, 4] and d.min(axis=1).max() < 0.1, np.round(d, 3)
-    np.testing.assert_allclose(turn @ turn.T, np.eye(3), atol=1e-12)
-    assert scale == pytest.approx(3.0, rel=0.3)   # the creature is 3x the hand
+    np.testing.assert_allclose(fitted.rotation @ fitted.rotation.T, np.eye(3), atol=1e-12)
+    assert fitted.scale == pytest.approx(3.0, rel=0.3)   # the creature is 3x the hand
+    # in the fit's frame the creature's longest side is a person's height (its legs 0.5 of 0.58 units long)
+    assert fitted.metre == pytest.approx(np.ptp(mesh.vertices, axis=0).max() / 1.7, rel=0.5)

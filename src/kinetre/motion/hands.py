@@ -14,7 +14,7 @@ puts the fingers in the mesh's legs.
 """
 from __future__ import annotations
 
-from dataclasses import replace
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -113,12 +113,30 @@ def fit_hand(take: Take, mesh: Mesh, bind_frame: int = 0, hang: bool = True, **o
     return replace(shape, placement=replace(shape.placement, rotation=shape.placement.rotation @ turn))
 
 
-def puppet_transform(hand: Skeleton, mesh: Mesh, nodes: np.ndarray | None = None,
-                     hang: bool = True) -> tuple[float, np.ndarray, np.ndarray]:
-    """(scale, rotation, translation) that put one hand frame (a live user's, at possession) inside `mesh`, in
-    the mesh's own frame and units, as `fit_hand` places a take's bind frame: x -> scale * rotation @ x +
-    translation. `nodes`: the mesh's graph nodes (see `align.fit_shapes`)."""
+@dataclass(frozen=True, eq=False)
+class HandPuppet:
+    """A live hand put inside a mesh, in the mesh's own frame and units (`fit_puppet`).
+
+    Attributes
+    ----------
+    scale, rotation (3, 3), translation (3,) : a hand frame x goes to scale * rotation @ x + translation
+    metre : the mesh-frame length of a metre of the fit's solve frame, where the mesh's longest side is a
+        person's height: attachment's reach (10 cm) and bone radius (4 cm) are that many times as long here
+    """
+
+    scale: float
+    rotation: np.ndarray
+    translation: np.ndarray
+    metre: float
+
+    def place(self, hand: Skeleton) -> Skeleton:
+        return hand.transformed(self.scale, self.rotation, self.translation)
+
+
+def fit_puppet(hand: Skeleton, mesh: Mesh, nodes: np.ndarray | None = None, hang: bool = True) -> HandPuppet:
+    """One hand frame (a live user's, at possession) put inside `mesh` as `fit_hand` places a take's bind
+    frame. `nodes`: the mesh's graph nodes (see `align.fit_shapes`)."""
     one = Take(HAND21, hand.positions[None], hand.tracked[None], 1.0, "hand")
     placement = fit_hand(one, mesh, 0, hang, nodes=nodes).placement
     k = placement.mesh_scale  # the solve frame is the mesh scaled by k
-    return placement.skeleton_scale / k, placement.rotation, placement.translation / k
+    return HandPuppet(placement.skeleton_scale / k, placement.rotation, placement.translation / k, 1.0 / k)

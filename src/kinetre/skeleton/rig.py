@@ -20,6 +20,7 @@ from .subsets import subset_mask
 
 
 _NO_FRAMES = np.zeros((0, 3, 3))  # frames without source bone frames: bones turn by their directions
+REACH, BONE_RADIUS = 0.10, 0.04  # metres: how near the mesh a joint attaches, and a bone's cylinder (people)
 
 
 def _as_list(skeletons) -> list[Skeleton]:
@@ -147,7 +148,7 @@ class Rig:
         return self._pose_of(self._x, report.energy, report.iterations)
 
 
-def attach(graph: DeformationGraph, skeletons, subset=None, reach: float = 0.10, bone_radius: float = 0.04,
+def attach(graph: DeformationGraph, skeletons, subset=None, reach=REACH, bone_radius=BONE_RADIUS,
            weights: EnergyWeights = EnergyWeights(), settings: SolverSettings = SolverSettings(),
            backend: str | None = None, node_bones: bool = False, rigid: bool = False) -> Rig:
     """Possess the graph with one or more skeletons in their current (bind) pose.
@@ -158,7 +159,8 @@ def attach(graph: DeformationGraph, skeletons, subset=None, reach: float = 0.10,
     skeletons : Skeleton or list of Skeleton (two users can drive one horse)
     subset : joint subset for every skeleton ("left arm", ["HipCenter", "right arm"], None = whole
         body), or a list with one subset per skeleton
-    reach : attachment distance, 10 cm; bone_radius : bone cylinder radius, 4 cm
+    reach : attachment distance, 10 cm; bone_radius : bone cylinder radius, 4 cm; either may be a list with
+        one value per skeleton (a hand puppet scaled up into a mesh reaches as far as its fit scaled it)
     node_bones : every graph node also follows its nearest bone (a skeleton that stands where the mesh's
         artist put it: `attach_skeleton`)
     rigid : a separate piece of the mesh whose bone samples come from one bone follows that bone rigidly
@@ -178,8 +180,12 @@ def attach(graph: DeformationGraph, skeletons, subset=None, reach: float = 0.10,
         subsets = subset
     else:
         subsets = [subset] * len(frames)
-    atts = [attach_skeleton(graph, f, subset_mask(f.model, s), reach, bone_radius, node_bones)
-            for f, s in zip(frames, subsets)]
+    reaches = list(reach) if isinstance(reach, (list, tuple)) else [reach] * len(frames)
+    radii = list(bone_radius) if isinstance(bone_radius, (list, tuple)) else [bone_radius] * len(frames)
+    if len(reaches) != len(frames) or len(radii) != len(frames):
+        raise BadSkeletonError(f"{len(frames)} skeleton(s) but {len(reaches)} reach(es) and {len(radii)} bone radii")
+    atts = [attach_skeleton(graph, f, subset_mask(f.model, s), r, b, node_bones)
+            for f, s, r, b in zip(frames, subsets, reaches, radii)]
     if sum(len(a.constraints) for a in atts) == 0:
         tracked = np.concatenate([f.positions[f.tracked] for f in frames])
         if len(tracked) == 0:
@@ -187,6 +193,6 @@ def attach(graph: DeformationGraph, skeletons, subset=None, reach: float = 0.10,
         from scipy.spatial import cKDTree
         d, _ = cKDTree(graph.nodes).query(tracked)
         raise AttachError(
-            f"cannot possess: no joint or bone is within {reach * 100:.0f} cm of the mesh (nearest joint "
+            f"cannot possess: no joint or bone is within {max(reaches) * 100:.0f} cm of the mesh (nearest joint "
             f"is {d.min():.2f} m away); step into the mesh, move it, or scale it to your height")
     return Rig(graph, atts, weights, settings, backend, rigid)

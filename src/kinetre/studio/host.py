@@ -21,7 +21,7 @@ from .meshes import NODES, mesh_payload, prepare_upright
 from .player import SAMPLE_CLIENT, MotionPlayer
 from .protocol import ProtocolError, is_person_of, parse_person, person_client
 from .recording import Takes, record_take
-from .scene import Scene, check_subset
+from .scene import Scene, check_hand, check_subset
 from .subjects import client_subject
 
 SCENE_COMMANDS = ("possess", "release", "subset", "place", "fit", "player")  # what the scene itself applies
@@ -126,7 +126,7 @@ class LocalScene:
         if kind == "possess":
             if self.player is not None and client != SAMPLE_CLIENT:
                 await self.stop_sample()  # a live user takes over from the sample motion
-            await scene.possess(client, check_subset(msg.get("subset")))
+            await scene.possess(client, check_subset(msg.get("subset")), check_hand(msg.get("hand")))
         elif kind == "release":
             await scene.release(client)
         elif kind == "subset":

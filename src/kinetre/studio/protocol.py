@@ -3,7 +3,8 @@
 Client → server (WebSocket text, JSON objects with a "type"):
     {"type": "skeleton", "seq": int, "t": ms, "model": "kinect20",
      "positions": [[x, y, z] × J] (metres, +Y up; null rows allowed), "tracked": [bool × J]}
-    {"type": "possess", "subset": str | [str] | null}   {"type": "release"}
+    {"type": "possess", "subset": str | [str] | null, "hand": "left" | "right" | null}   {"type": "release"}
+        (with "hand", that hand's landmarks (the skeleton frames' "hands") possess instead of the body)
     {"type": "subset", "subset": ...}   {"type": "place", "scale": s, "position": [3], "yaw": radians}
     {"type": "fit"}   {"type": "player", "on": bool}   {"type": "stats"}
     {"type": "subscribe", "skeletons": bool, "window": int}   (also receive the other users' skeleton

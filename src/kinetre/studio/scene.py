@@ -23,8 +23,10 @@ from ..errors import AttachError
 from ..graph.graph import DeformationGraph
 from ..mesh.mesh import Mesh
 from ..mesh.upright import Upright
-from ..skeleton.models import Skeleton
+from ..skeleton.models import HAND21, Skeleton
 from ..motion.fit import yaw_rotation
+from ..motion.hands import SIDES, HandPuppet, fit_puppet
+from ..skeleton.rig import BONE_RADIUS, REACH
 from ..skeleton.subsets import subset_mask
 from ..wire.transforms import pack_transforms
 from .channels import Channels, Frame, now_ms
@@ -59,6 +61,8 @@ class User:
     bind: Skeleton | None = None  # mesh frame, the pose at possession (None = not possessing)
     subset: str | list | None = None
     stand: tuple | None = None  # (R, t): where a joint map's source stands, x -> R x + t (see Scene.stand_in)
+    hand: str | None = None  # "left" or "right" while a hand possesses (a hand puppet), None for the body
+    puppet: HandPuppet | None = None  # that hand put inside the mesh, fitted at possession
 
     @property
     def latest(self) -> Skeleton | None:
@@ -99,6 +103,20 @@ class User:
     def placed(self, skeleton: Skeleton) -> Skeleton:
         """The frame moved to where the user's joint-map source stands (unchanged without one)."""
         return skeleton if self.stand is None else skeleton.transformed(1.0, *self.stand)
+
+    def hand_frame(self) -> Skeleton:
+        """The newest frame of the possessing hand as a `HAND21` skeleton (world frame; untracked when the
+        hand is not seen)."""
+        marks = self.hands
+        side = np.full((21, 3), np.nan) if marks is None else marks[SIDES.index(self.hand)]
+        return Skeleton.from_positions(HAND21, side)
+
+    def driving(self, placement: Placement) -> Skeleton:
+        """The frame that drives the mesh, in its own frame: the possessing hand put inside it, or the body
+        where the mesh stands in the room (`placement`), moved to its joint-map source's place, masked."""
+        if self.hand is not None:
+            return self.masked(self.puppet.place(self.hand_frame()))
+        return self.masked(placement.to_local(self.placed(self.latest)))
 
     def masked(self, skeleton: Skeleton) -> Skeleton:
         """Joints outside the user's subset count as untracked, so they neither attach nor pull."""
@@ -262,9 +280,14 @@ class Scene:
             self._dirty.set()
             self.solver.newer_frame()  # a running solve yields to this frame (solve_worker.yielding)
 
-    async def possess(self, client: str, subset=None) -> None:
-        """Bind the user's current pose (possession); raises AttachError when nothing is near the mesh."""
+    async def possess(self, client: str, subset=None, hand: str | None = None) -> None:
+        """Bind the user's current pose (possession), or with `hand` ("left", "right") that hand's, fitted
+        into the mesh from the shapes (a hand puppet); raises AttachError when nothing is near the mesh or
+        the hand is not seen."""
         user = self.user(client)
+        if hand is not None:
+            await self._possess_by_hand(user, subset, hand)
+            return
         if user.latest is None or not user.latest.tracked.any():
             raise AttachError("no tracked skeleton from this client yet: nothing to possess with")
         source = None
@@ -275,14 +298,29 @@ class Scene:
                 subset = source.joint_names(user.latest.model, self.joint_map.path)
         if subset is not None:
             subset_mask(user.latest.model, subset)  # BadSkeletonError on an unknown name
-        old_bind, old_subset, old_stand = user.bind, user.subset, user.stand
-        user.subset = subset
-        user.stand = self.stand_in(user.latest, source) if source is not None else None
-        user.bind = user.masked(self.placement.to_local(user.placed(user.latest)))
+        await self._bind(user, subset, None, None, self.stand_in(user.latest, source) if source is not None else None)
+
+    async def _possess_by_hand(self, user: User, subset, hand: str) -> None:
+        check_hand(hand)
+        marks = user.hands
+        if marks is None or not np.isfinite(marks[SIDES.index(hand)]).all():
+            raise AttachError(f"no {hand} hand tracked from this client yet: show it to the camera")
+        if subset is not None:
+            subset_mask(HAND21, subset)  # BadSkeletonError on a name that is no part of a hand
+        frame = Skeleton.from_positions(HAND21, marks[SIDES.index(hand)])
+        # the shape fit searches for a second or so: off the event loop
+        fitted = await asyncio.to_thread(fit_puppet, frame, self.mesh, self.graph.nodes)
+        await self._bind(user, subset, hand, fitted, None)
+
+    async def _bind(self, user: User, subset, hand: str | None, puppet, stand) -> None:
+        """Possess with the user's newest frame, driven as given; back to what it was when attaching fails."""
+        old = user.bind, user.subset, user.stand, user.hand, user.puppet
+        user.subset, user.stand, user.hand, user.puppet = subset, stand, hand, puppet
+        user.bind = user.driving(self.placement)
         try:
             await self._rebuild_rig()
         except Exception:
-            user.bind, user.subset, user.stand = old_bind, old_subset, old_stand
+            user.bind, user.subset, user.stand, user.hand, user.puppet = old
             await self._rebuild_rig()
             raise
         self.publish_state()
@@ -302,17 +340,18 @@ class Scene:
         user = self.users.get(client)
         if user is None or user.bind is None:
             return
-        user.bind = user.stand = None
+        user.bind = user.stand = user.hand = user.puppet = None
         await self._rebuild_rig()
         self.publish_state()
 
     async def set_subset(self, client: str, subset) -> None:
-        """Change which joints drive; a possessing user re-binds with the new subset at the current pose."""
+        """Change which joints drive; a possessing user re-binds with the new subset at the current pose (a
+        hand puppet keeps its hand)."""
         user = self.user(client)
-        if user.latest is not None and subset is not None:
+        if user.latest is not None and subset is not None and user.hand is None:
             subset_mask(user.latest.model, subset)
         if user.bind is not None:
-            await self.possess(client, subset)
+            await self.possess(client, subset, user.hand)
         else:
             user.subset = subset
             self.publish_state()
@@ -329,9 +368,13 @@ class Scene:
                 self.pose = GraphPose.identity(self.graph.node_count)  # let go: back to rest
                 self._publish_pose(now_ms())
                 return
-            binds = [self.users[c].bind for c in possessors]
-            graph = self.graph
-            self.attached = await self.solver.attach(graph, binds if len(binds) > 1 else binds[0])
+            users = [self.users[c] for c in possessors]
+            binds = [u.bind for u in users]
+            # a hand puppet reaches as far as its fit scaled it up (people: the attachment's own reach)
+            reach = {} if all(u.puppet is None for u in users) else {
+                "reach": [REACH * (1.0 if u.puppet is None else u.puppet.metre) for u in users],
+                "bone_radius": [BONE_RADIUS * (1.0 if u.puppet is None else u.puppet.metre) for u in users]}
+            self.attached = await self.solver.attach(self.graph, binds if len(binds) > 1 else binds[0], **reach)
             self.rig = self.solver
             self.possessors = possessors
         self._dirty.set()
@@ -436,7 +479,7 @@ class Scene:
             if len(users) != len(self.possessors):
                 self._flush()
                 return None
-            frames = [u.masked(self.placement.to_local(u.placed(u.latest))) for u in users]
+            frames = [u.driving(self.placement) for u in users]
             arrived = min((u.arrived for u in users if u.used != u.seq), default=time.monotonic())
             for u in users:
                 u.used = u.seq
@@ -501,7 +544,7 @@ class Scene:
                      "up": self.upright.up if self.upright else "y",
                      "up_reason": self.upright.reason if self.upright else ""},
             "placement": self.placement.as_dict(),
-            "users": [{"client": u.client, "possessing": u.bind is not None, "subset": u.subset,
+            "users": [{"client": u.client, "possessing": u.bind is not None, "subset": u.subset, "hand": u.hand,
                        "frames": u.frames, "attached": attached.get(u.client, [])}
                       for u in self.users.values()],
             "recording": self.recording is not None,
@@ -555,6 +598,13 @@ def resample(take: list[TakeFrame], fps: float) -> list[TakeFrame]:
     count = int((times[-1] - times[0]) / 1000.0 * fps) + 1
     picks = np.searchsorted(times, times[0] + np.arange(count) * 1000.0 / fps, side="right") - 1
     return [take[i] for i in picks]
+
+
+def check_hand(value) -> str | None:
+    """A possessing hand from a client message: null, "left" or "right"."""
+    if value is None or value in SIDES:
+        return value
+    raise ProtocolError(f"hand must be null, \"left\" or \"right\", got {value!r}")
 
 
 def check_subset(value) -> str | list | None:

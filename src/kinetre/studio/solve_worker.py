@@ -41,8 +41,10 @@ class InlineSolver:
     async def start(self) -> None:
         """Nothing to spawn: the solve runs in this process (`SolveWorker.start` spawns its process)."""
 
-    async def attach(self, graph, skeletons, settings: SolverSettings = SolverSettings()) -> list[np.ndarray]:
-        self.rig = await asyncio.to_thread(attach, graph, skeletons, settings=settings)
+    async def attach(self, graph, skeletons, settings: SolverSettings = SolverSettings(),
+                     **reach) -> list[np.ndarray]:
+        """`kinetre.attach`; `reach`: its reach and bone_radius, when not a person's."""
+        self.rig = await asyncio.to_thread(attach, graph, skeletons, settings=settings, **reach)
         return self.rig.attached_joints
 
     def newer_frame(self) -> None:
@@ -141,8 +143,8 @@ def _serve(conn, newer) -> None:
         stopped = False
         try:
             if request[0] == "attach":
-                _, graph, skeletons, settings = request
-                rig = attach(graph, skeletons, settings=settings)
+                _, graph, skeletons, settings, reach = request
+                rig = attach(graph, skeletons, settings=settings, **reach)
                 reply = ("ok", rig.attached_joints)
             elif request[0] == "solve":
                 pose, stopped = solve_yielding(rig, request[1], flag)
@@ -217,8 +219,10 @@ class SolveWorker:
         """Spawn the process now (instead of at the first possession); returns its pid."""
         return await self._call("ping")
 
-    async def attach(self, graph, skeletons, settings: SolverSettings = SolverSettings()) -> list[np.ndarray]:
-        return await self._call("attach", graph, skeletons, settings)
+    async def attach(self, graph, skeletons, settings: SolverSettings = SolverSettings(),
+                     **reach) -> list[np.ndarray]:
+        """`kinetre.attach` in the child; `reach`: its reach and bone_radius, when not a person's."""
+        return await self._call("attach", graph, skeletons, settings, reach)
 
     def newer_frame(self) -> None:
         """A newer frame waits: a long solve yields to it (see `yielding`)."""
