@@ -9,6 +9,7 @@ import pytest
 
 from kinetre.studio.channels import Frame, Hub
 from kinetre.studio.meshes import data_path, prepare_mesh
+from kinetre.studio.protocol import SkeletonFrame
 from kinetre.studio.scene import Scene
 from kinetre.studio.solve_worker import InlineSolver, SolverLost, SolveWorker
 
@@ -19,7 +20,7 @@ def spot64():
 
 
 def feed(scene, k, skeleton):
-    scene.receive(Frame("kinetre.skeleton.u", k, float(k), b"", (k, float(k), skeleton)))
+    scene.receive(Frame("kinetre.skeleton.u", k, float(k), b"", SkeletonFrame(k, float(k), skeleton)))
 
 
 async def drive(scene, walk, frames=(10, 20, 30)):

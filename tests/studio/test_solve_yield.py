@@ -11,6 +11,7 @@ import pytest
 from kinetre.deform.solver import SolverSettings
 from kinetre.studio import solve_worker
 from kinetre.studio.meshes import data_path, prepare_mesh
+from kinetre.studio.protocol import SkeletonFrame
 from kinetre.studio.placement import Placement
 
 
@@ -42,7 +43,7 @@ def test_the_worker_yields_inside_the_pcg_loop_when_the_shared_byte_is_set(spot6
     mesh, graph = spot64
     place = Placement.fitted(walk[0], mesh)
     skeletons = [place.to_local(walk[k]) for k in (0, 4, 12)]
-    attach = ("attach", graph, skeletons[0], SolverSettings())
+    attach = ("attach", graph, skeletons[0], SolverSettings(), {})
     runs = {}
     for flag in (0, 1):
         newer = multiprocessing.get_context("spawn").RawValue("b", 0)
@@ -95,7 +96,7 @@ def test_a_pose_solved_while_a_newer_frame_waits_goes_out_once_the_next_solve_is
         solver = scene.solver
 
         def feed(k):
-            scene.receive(Frame("kinetre.skeleton.u", k, float(k), b"", (k, float(k), walk[k])))
+            scene.receive(Frame("kinetre.skeleton.u", k, float(k), b"", SkeletonFrame(k, float(k), walk[k])))
         feed(1)
         await scene.possess("u")
         start = len(published)
@@ -129,14 +130,14 @@ def test_a_pose_held_for_the_next_solve_is_in_the_take_when_recording_stops(spot
 
     async def go():
         scene = Scene(Hub(), mesh, graph, solver=StubSolver(graph, []))
-        scene.receive(Frame("kinetre.skeleton.u", 1, 1.0, b"", (1, 1.0, walk[1])))
+        scene.receive(Frame("kinetre.skeleton.u", 1, 1.0, b"", SkeletonFrame(1, 1.0, walk[1])))
         await scene.possess("u")
         scene.start_recording()
         await scene.solve_once()  # out at once: recorded
-        scene.receive(Frame("kinetre.skeleton.u", 2, 2.0, b"", (2, 2.0, walk[2])))
+        scene.receive(Frame("kinetre.skeleton.u", 2, 2.0, b"", SkeletonFrame(2, 2.0, walk[2])))
         task = asyncio.get_running_loop().create_task(scene.solve_once())
         await asyncio.sleep(0.002)
-        scene.receive(Frame("kinetre.skeleton.u", 3, 3.0, b"", (3, 3.0, walk[3])))  # during the second solve
+        scene.receive(Frame("kinetre.skeleton.u", 3, 3.0, b"", SkeletonFrame(3, 3.0, walk[3])))  # during the second solve
         await task
         assert scene._unpublished is not None  # the second solve's pose is held
         return scene.stop_recording()
