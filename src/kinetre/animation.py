@@ -176,7 +176,7 @@ def animate(mesh: Mesh, take: Take, settings: AnimateSettings = AnimateSettings(
     solver = SolverSettings() if s.solver is None else SolverSettings(method=s.solver)
     subset = list(s.subset) if isinstance(s.subset, tuple) else s.subset
     rig = kinetre.attach(solve_graph, bind, subset=subset, settings=solver,
-                         node_bones=placement.method == "in place", rigid=True)
+                         node_bones=placement.method == "in place", rigid=True, mesh=placement.mesh(mesh))
     step("attach")
     notes = notes + _attach_notes(take, rig, s.subset)
     lap("attach")

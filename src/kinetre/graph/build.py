@@ -61,5 +61,5 @@ def with_weights(graph: DeformationGraph, mesh: Mesh) -> DeformationGraph:
     idx, w = skinning_weights(mesh.vertices, mesh.normals, graph.nodes, graph.normals, graph.radius)
     if graph.pieces is not None and len(graph.pieces) == graph.node_count:
         idx, w = keep_to_pieces(idx, w, mesh.vertices, vertex_pieces(mesh.vertices, mesh.faces),
-                                graph.nodes, graph.pieces)
+                                graph.nodes, graph.pieces, mesh.faces)
     return dataclasses.replace(graph, vertex_nodes=idx, vertex_weights=w)

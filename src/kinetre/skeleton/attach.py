@@ -15,6 +15,7 @@ from scipy.spatial import cKDTree
 
 from ..deform.constraints import PointConstraints
 from ..graph.graph import DeformationGraph
+from ..mesh.mesh import Mesh
 from ..jit import njit
 from ..rotation import minimal_rotation_into
 from .models import Skeleton
@@ -111,7 +112,8 @@ def _carry(nodes: np.ndarray, candidates: np.ndarray, point: np.ndarray, neighbo
 
 
 def attach_skeleton(graph: DeformationGraph, skeleton: Skeleton, joint_mask: np.ndarray,
-                    reach: float = 0.10, bone_radius: float = 0.04, node_bones: bool = False) -> SkeletonAttachment:
+                    reach: float = 0.10, bone_radius: float = 0.04, node_bones: bool = False,
+                    mesh: Mesh | None = None) -> SkeletonAttachment:
     """Point constraints for one skeleton at its bind pose (the pose at "possess").
 
     With `node_bones` every graph node also follows its nearest bone (ours, for a skeleton that stands
@@ -126,6 +128,8 @@ def attach_skeleton(graph: DeformationGraph, skeleton: Skeleton, joint_mask: np.
     reach : float, attachment distance (10 cm)
     bone_radius : float, bone cylinder radius (4 cm)
     node_bones : bool, carry every node by its nearest bone as well
+    mesh : Mesh or None, the graph's mesh in the same frame: with `node_bones` a multi-part mesh's pieces
+        are told which bones run through them from their own triangles (`piece_bones`)
     """
     nodes, normals = graph.nodes, graph.normals
     tree = cKDTree(nodes)
@@ -134,7 +138,7 @@ def attach_skeleton(graph: DeformationGraph, skeleton: Skeleton, joint_mask: np.
     points, idx, wts, joint_of, bone_of, offsets = [], [], [], [], [], []
     use = joint_mask & tracked
     # a skeleton standing inside a multi-part mesh carries each piece by the bones that run through it only
-    allowed = piece_bones(graph, skeleton, joint_mask) if node_bones else None
+    allowed = piece_bones(graph, skeleton, joint_mask, mesh) if node_bones else None
     for j in np.flatnonzero(use):
         near = tree.query_ball_point(pos[j], reach)
         if not near:

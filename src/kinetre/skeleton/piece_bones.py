@@ -3,8 +3,8 @@
 A skeleton that stands where the artist put it runs through the pieces it drives: the head bone lies
 inside the head, the forearm inside the forearm. A bone that merely passes near a piece (a hand raised
 beside the head in the bind pose) must not carry it, or the piece follows the hand. So a piece is carried
-only by the bones that run through it; a piece no bone runs through (a bolt, a thin plate, one too small
-to tell) may take any bone, as a one-piece mesh does.
+only by the bones that run through it. A piece no bone runs through (a bolt, a thumb, a thin plate) is a
+part fixed to the piece it touches: it takes that piece's bones.
 """
 from __future__ import annotations
 
@@ -12,19 +12,26 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from ..graph.graph import DeformationGraph
+from ..graph.pieces import contact_hosts, ride_on, vertex_pieces
+from ..mesh.mesh import Mesh
+from ..mesh.solid import winding_numbers
 from .models import Skeleton
 
 ALONG = 9  # points along a bone tested for lying inside a piece
 THROUGH = 2  # of them inside, for the bone to run through the piece
-MIN_NODES = 8  # a piece needs this many nodes for an inside test (fewer: any bone)
+MIN_NODES = 8  # without the mesh, a piece needs this many nodes for an inside test (fewer: any bone)
 
 
-def piece_bones(graph: DeformationGraph, skeleton: Skeleton, joint_mask: np.ndarray) -> np.ndarray | None:
+def piece_bones(graph: DeformationGraph, skeleton: Skeleton, joint_mask: np.ndarray,
+                mesh: Mesh | None = None) -> np.ndarray | None:
     """(pieces, B) bool: per piece of the graph (`graph.pieces`) the rows of model.bones that may carry it,
     or None when the graph is one piece (every bone may carry every node) or no bone runs through any piece.
 
-    A point lies inside a piece when it is behind the normal of the piece's nearest node (a closed
-    surface's outward normals) and within the piece's own extent."""
+    With `mesh` (the graph's mesh, in the same frame) a point lies inside a piece when the piece's own
+    triangles wind round it (generalized winding number ≥ 1/2), and a piece no bone runs through takes the
+    bones of the piece it touches (`pieces.contact_hosts`). Without it, a point lies inside when it is behind
+    the normal of the piece's nearest node and within the piece's extent, and a piece no bone runs through may
+    take any bone."""
     pieces = graph.pieces
     if pieces is None or len(pieces) != graph.node_count or len(np.unique(pieces)) < 2:
         return None
@@ -34,22 +41,57 @@ def piece_bones(graph: DeformationGraph, skeleton: Skeleton, joint_mask: np.ndar
     ok = use[bones[:, 0]] & use[bones[:, 1]] & (np.linalg.norm(pos[bones[:, 1]] - pos[bones[:, 0]], axis=1) > 1e-9)
     s = (np.arange(ALONG) + 0.5) / ALONG
     points = pos[bones[:, 0], None] + s[None, :, None] * (pos[bones[:, 1]] - pos[bones[:, 0]])[:, None]  # (B, A, 3)
-    count = int(pieces.max()) + 1
-    through = np.zeros((count, len(bones)), bool)
+    points = points.reshape(-1, 3)
+    if mesh is not None:
+        vp = vertex_pieces(mesh.vertices, mesh.faces)
+        count = max(int(vp.max()), int(pieces.max())) + 1
+        inside = _inside_triangles(points, mesh, vp, count)
+    else:
+        vp, count = None, int(pieces.max()) + 1
+        inside = _inside_nodes(points, graph, pieces, count)
+    through = ok[None] & (inside.reshape(count, len(bones), ALONG).sum(axis=2) >= THROUGH)
+    has = through.any(axis=1)
+    if not has.any():
+        return None
+    if vp is not None:
+        host = contact_hosts(mesh.vertices, mesh.faces, vp, ~has)
+        for p in np.flatnonzero(~has):
+            h = ride_on(host, p, has)
+            through[p] = through[h] if h >= 0 else ok
+    else:
+        # riding on the nearest other node's piece would follow whatever touches it in the bind pose
+        through[~has] = ok
+    return through
+
+
+def _inside_triangles(points: np.ndarray, mesh: Mesh, vp: np.ndarray, count: int) -> np.ndarray:
+    """(pieces, P) bool: each point inside each piece by the winding number of the piece's own triangles
+    (only points within the piece's box are tested: none outside it can be inside)."""
+    faces = np.asarray(mesh.faces, dtype=np.int64)
+    face_piece = vp[faces[:, 0]]
+    out = np.zeros((count, len(points)), bool)
+    for p in range(count):
+        mine = faces[face_piece == p]
+        if len(mine) == 0:
+            continue
+        corners = mesh.vertices[mine.ravel()]
+        lo, hi = corners.min(axis=0), corners.max(axis=0)
+        near = np.flatnonzero(((points >= lo) & (points <= hi)).all(axis=1))
+        if len(near):
+            out[p, near] = winding_numbers(points[near], mesh.vertices, mine) >= 0.5
+    return out
+
+
+def _inside_nodes(points: np.ndarray, graph: DeformationGraph, pieces: np.ndarray, count: int) -> np.ndarray:
+    """(pieces, P) bool: each point behind the normal of the piece's nearest node and within its extent, for
+    pieces with at least MIN_NODES nodes."""
+    out = np.zeros((count, len(points)), bool)
     for p in range(count):
         mine = np.flatnonzero(pieces == p)
         if len(mine) < MIN_NODES:
             continue
         nodes, normals = graph.nodes[mine], graph.normals[mine]
-        dist, near = cKDTree(nodes).query(points.reshape(-1, 3))
-        behind = np.einsum("ni,ni->n", points.reshape(-1, 3) - nodes[near], normals[near]) < 0.0
-        extent = float(np.ptp(nodes, axis=0).max())
-        inside = (behind & (dist < 0.5 * extent)).reshape(len(bones), ALONG)
-        through[p] = ok & (inside.sum(axis=1) >= THROUGH)
-    has = through.any(axis=1)
-    if not has.any():
-        return None
-    # a piece no bone runs through (a plate, a bolt, one with too few nodes to tell) may take any bone, as a
-    # one-piece mesh does: riding on the nearest other piece would follow whatever touches it in the bind pose
-    through[~has] = ok
-    return through
+        dist, near = cKDTree(nodes).query(points)
+        behind = np.einsum("ni,ni->n", points - nodes[near], normals[near]) < 0.0
+        out[p] = behind & (dist < 0.5 * float(np.ptp(nodes, axis=0).max()))
+    return out

@@ -13,6 +13,7 @@ from ..deform.pose import GraphPose
 from ..deform.solver import GaussNewton, SolverSettings, SolveReport
 from ..errors import AttachError, BadSkeletonError
 from ..graph.graph import DeformationGraph
+from ..mesh.mesh import Mesh
 from .attach import SkeletonAttachment, StackedAttachments, attach_skeleton, stacked_targets
 from .models import Skeleton
 from .rigid_pieces import hold_rigid, rigid_pieces
@@ -150,7 +151,8 @@ class Rig:
 
 def attach(graph: DeformationGraph, skeletons, subset=None, reach=REACH, bone_radius=BONE_RADIUS,
            weights: EnergyWeights = EnergyWeights(), settings: SolverSettings = SolverSettings(),
-           backend: str | None = None, node_bones: bool = False, rigid: bool = False) -> Rig:
+           backend: str | None = None, node_bones: bool = False, rigid: bool = False,
+           mesh: Mesh | None = None) -> Rig:
     """Possess the graph with one or more skeletons in their current (bind) pose.
 
     Parameters
@@ -165,6 +167,8 @@ def attach(graph: DeformationGraph, skeletons, subset=None, reach=REACH, bone_ra
         artist put it: `attach_skeleton`)
     rigid : a separate piece of the mesh whose bone samples come from one bone follows that bone rigidly
         (`rigid_pieces`)
+    mesh : the graph's mesh in the same frame, if at hand: with `node_bones`, which bones run through each of
+        its pieces is then told from the piece's own triangles (`piece_bones`)
 
     Raises
     ------
@@ -184,7 +188,7 @@ def attach(graph: DeformationGraph, skeletons, subset=None, reach=REACH, bone_ra
     radii = list(bone_radius) if isinstance(bone_radius, (list, tuple)) else [bone_radius] * len(frames)
     if len(reaches) != len(frames) or len(radii) != len(frames):
         raise BadSkeletonError(f"{len(frames)} skeleton(s) but {len(reaches)} reach(es) and {len(radii)} bone radii")
-    atts = [attach_skeleton(graph, f, subset_mask(f.model, s), r, b, node_bones)
+    atts = [attach_skeleton(graph, f, subset_mask(f.model, s), r, b, node_bones, mesh)
             for f, s, r, b in zip(frames, subsets, reaches, radii)]
     if sum(len(a.constraints) for a in atts) == 0:
         tracked = np.concatenate([f.positions[f.tracked] for f in frames])
