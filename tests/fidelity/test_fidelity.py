@@ -14,7 +14,8 @@ FRAMES = 8
 # (avatar, clip, bound on the mean error in % of height). Each bound is well below what standing still scores
 # on that clip (checked below), so a rig that does not follow the motion fails.
 ANIMATE = [("RiggedFigure", "0", 2.2), ("Fox", "Walk", 5.5), ("CesiumMan", "0", 1.2),
-           ("robot_quaternius", "Robot_Walking", 2.0), ("robot_quaternius", "Robot_Dance", 2.5)]
+           ("robot_quaternius", "Robot_Walking", 1.0), ("robot_quaternius", "Robot_Dance", 1.0),
+           ("robot_quaternius", "Robot_Running", 1.2), ("robot_quaternius", "Robot_Death", 1.2)]
 AVATAR = [("RiggedFigure", "0", 0.5), ("CesiumMan", "0", 1.5), ("robot_quaternius", "Robot_Walking", 0.5)]
 
 

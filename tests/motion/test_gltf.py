@@ -161,3 +161,17 @@ def test_a_person_with_kinect_names_maps_to_kinect20(tmp_path):
     np.testing.assert_allclose(take.positions[2, hips] - take.positions[0, hips], [0.5, 0, 0], atol=1e-6)
     own = load_take(tmp_path / "person.glb", as_kinect=False)
     assert own.model.name == "gltf:person" and own.model.joints == kinetre.KINECT20.joints
+
+
+def test_joints_that_move_no_skin_are_marked_and_their_bones_carry_nothing(data_dir):
+    """The robot's artist weights its chest to the hips and leaves the spine links above them unweighted: the
+    bones that turn with those links are not ones its skin follows; every weighted joint's bones are."""
+    take = load_gltf(data_dir / "avatars" / "robot_quaternius.glb#Robot_Running", as_kinect=False)
+    model = take.model
+    assert {"Abdomen", "Torso", "Neck"} <= set(model.unskinned)
+    assert not {"Hips", "Head", "UpperArm.L", "LowerLeg.R"} & set(model.unskinned)
+    carries = dict(zip((f"{model.joints[p]}>{model.joints[c]}" for p, c in model.bones), model.skinning_bones))
+    assert carries["Hips>Abdomen"] and carries["Head>Head.tip"] and carries["UpperLeg.L>LowerLeg.L"]
+    assert not carries["Abdomen>Torso"] and not carries["Neck>Head"] and not carries["Torso>Shoulder.L"]
+    fox = load_take(data_dir / "avatars" / "Fox.glb#Walk").model
+    assert fox.skinning_bones.sum() >= len(fox.bones) - 1  # a skin that weights its whole skeleton keeps it

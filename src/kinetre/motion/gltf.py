@@ -400,7 +400,10 @@ def _own_take(d: GltfDocument, index: int, world: np.ndarray, fps: float, source
         positions = np.concatenate([positions, tip_world], axis=1)
         carriers = carriers + [nodes[k] for k, _ in ends]
         names, parents = names + tuple(n for _, n in ends), parents + tuple(k for k, _ in ends)
-    model = SkeletonModel(f"gltf:{Path(d.path).stem}", names, parents)
+    weight = skin_weights(d)
+    # a joint that moves none of its file's skin is a helper: the artist's skin does not turn with it
+    unskinned = tuple(n for n, j in zip(names, nodes) if weight.get(j, 0.0) <= 0.0) if weight else ()
+    model = SkeletonModel(f"gltf:{Path(d.path).stem}", names, parents, unskinned)
     return Take(model, positions, np.ones(positions.shape[:2], dtype=bool), fps, source,
                 bone_frames=rotation_part(world[:, carriers][..., :3, :3]))
 

@@ -139,6 +139,8 @@ def attach_skeleton(graph: DeformationGraph, skeleton: Skeleton, joint_mask: np.
     use = joint_mask & tracked
     # a skeleton standing inside a multi-part mesh carries each piece by the bones that run through it only
     allowed = piece_bones(graph, skeleton, joint_mask, mesh) if node_bones else None
+    # a skeleton standing where the artist put it carries the mesh by the bones the artist's skin follows
+    carries = skeleton.model.skinning_bones if node_bones else np.ones(len(skeleton.model.bones), bool)
     for j in np.flatnonzero(use):
         near = tree.query_ball_point(pos[j], reach)
         if not near:
@@ -149,7 +151,7 @@ def attach_skeleton(graph: DeformationGraph, skeleton: Skeleton, joint_mask: np.
         points.append(pos[j]), idx.append(i), wts.append(w)
         joint_of.append(j), bone_of.append(-1), offsets.append(np.zeros(3))
     for bi, (p, c) in enumerate(skeleton.model.bones):
-        if not (use[p] and use[c]) or np.linalg.norm(pos[c] - pos[p]) < 1e-6:
+        if not (use[p] and use[c] and carries[bi]) or np.linalg.norm(pos[c] - pos[p]) < 1e-6:
             continue
         sp, sn = bone_samples(pos[p], pos[c], bone_radius)
         for q, n in zip(sp, sn):
@@ -168,7 +170,7 @@ def attach_skeleton(graph: DeformationGraph, skeleton: Skeleton, joint_mask: np.
         # a joint outside the graph's box (a rig's helper, an IK pole target) carries none of the mesh
         lo, hi = nodes.min(axis=0) - reach, nodes.max(axis=0) + reach
         within = use & ((pos >= lo) & (pos <= hi)).all(axis=1)
-        mask = None if allowed is None else allowed[graph.pieces]
+        mask = np.broadcast_to(carries, (len(nodes), len(carries))) if allowed is None else allowed[graph.pieces]
         for j, bi in enumerate(nearest_bones(nodes, skeleton, within, mask)):
             if bi < 0:
                 continue

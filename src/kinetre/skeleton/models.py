@@ -21,11 +21,15 @@ class SkeletonModel:
         Joint names, in order.
     parents : tuple of int
         parents[i] is the index of joint i's parent, -1 for a root.
+    unskinned : tuple of str
+        Joints whose own frame moves no vertex of their file's skin (an unweighted spine link, an IK
+        helper); empty when the source has no skin to tell.
     """
 
     name: str
     joints: tuple[str, ...]
     parents: tuple[int, ...]
+    unskinned: tuple[str, ...] = ()
 
     def __post_init__(self):
         if len(self.joints) != len(self.parents):
@@ -40,6 +44,13 @@ class SkeletonModel:
         """(B, 2) int32: (parent, child) joint index pairs."""
         pairs = [(p, c) for c, p in enumerate(self.parents) if p >= 0]
         return np.array(pairs, dtype=np.int32).reshape(-1, 2)
+
+    @property
+    def skinning_bones(self) -> np.ndarray:
+        """(B,) bool per row of `bones`: the bone turns with a joint that moves skin in the source (its parent
+        joint is not `unskinned`); all True when the source does not tell."""
+        still = set(self.unskinned)
+        return np.array([self.joints[p] not in still for p, _ in self.bones], dtype=bool)
 
     def index(self, joint: str) -> int:
         try:

@@ -39,6 +39,7 @@ def piece_bones(graph: DeformationGraph, skeleton: Skeleton, joint_mask: np.ndar
     pos = skeleton.positions
     use = joint_mask & skeleton.tracked
     ok = use[bones[:, 0]] & use[bones[:, 1]] & (np.linalg.norm(pos[bones[:, 1]] - pos[bones[:, 0]], axis=1) > 1e-9)
+    ok &= skeleton.model.skinning_bones
     s = (np.arange(ALONG) + 0.5) / ALONG
     points = pos[bones[:, 0], None] + s[None, :, None] * (pos[bones[:, 1]] - pos[bones[:, 0]])[:, None]  # (B, A, 3)
     points = points.reshape(-1, 3)
