@@ -43,6 +43,7 @@ class StudioClient:
         self.client = ""
         self.state: dict | None = None
         self.transforms: tuple | None = None  # (seq, mesh_id, t_source, t_out, matrices)
+        self.mesh_transforms: dict[int, tuple] = {}  # the newest transforms of each mesh, by mesh id
         self.transform_count = 0
         self.messages: list[dict] = []
         self.blocks: list[tuple[float, bytes]] = []  # (t_source, raw block) per transform block
@@ -67,6 +68,7 @@ class StudioClient:
             now = time.time() * 1000
             if isinstance(data, bytes):
                 self.transforms = unpack_transforms(data)
+                self.mesh_transforms[self.transforms[1]] = self.transforms
                 self.transform_count += 1
                 self.arrivals.append((self.transforms[2], now))
                 self.blocks.append((self.transforms[2], data))

@@ -81,7 +81,7 @@ def create_app(mesh_path: str | None = None, nodes: int = NODES, sample_motion: 
         raw = load_mesh(path)
         mesh, graph, upright = prepare_upright(raw, path, nodes)
         scene = Scene(hub, mesh, graph, Path(path).name, solver=SolveWorker(),  # the solve never holds the server
-                      upright=upright)
+                      upright=upright, new_solver=SolveWorker)
         player = sample_player(hub) if sample_motion and mesh_path is None else None
         host = LocalScene(hub, scene, player, nodes=nodes, source=(raw, Path(path).name))
     shelf = Shelf()

@@ -19,7 +19,7 @@ from .channels import Channels, Frame, now_ms
 from .jobs import Job, Jobs, prepare_upload
 from .meshes import NODES, mesh_payload, prepare_upright
 from .player import SAMPLE_CLIENT, MotionPlayer
-from .protocol import ProtocolError, is_person_of, parse_person, person_client
+from .protocol import ProtocolError, is_person_of, parse_mesh, parse_person, person_client
 from .recording import Takes, record_take
 from .scene import Scene, check_hand, check_subset
 from .subjects import client_subject
@@ -39,8 +39,8 @@ class SceneHost(Protocol):
 
     def state(self) -> dict: ...
 
-    def transforms_block(self) -> bytes | None:
-        """The current pose for a page that connects (None while nothing is known of it yet)."""
+    def transforms_blocks(self) -> list[bytes]:
+        """Every mesh's current pose for a page that connects (none while nothing is known of them yet)."""
 
     async def command(self, client: str, msg: dict, raw: bytes) -> None:
         """Apply one of SCENE_COMMANDS (`msg`, parsed from `raw`); raises one of ANSWERED on bad input."""
@@ -48,13 +48,19 @@ class SceneHost(Protocol):
     def forget(self, client: str) -> None: ...
 
     async def mesh_json(self, mesh_id: int) -> bytes | None:
-        """The mesh payload (JSON bytes) if `mesh_id` is the loaded mesh."""
+        """The mesh payload (JSON bytes) if `mesh_id` is one of the scene's meshes."""
 
-    def start_job(self, name: str, data: bytes, scan_options: dict | None = None) -> Job: ...
+    def start_job(self, name: str, data: bytes, scan_options: dict | None = None, add: bool = False) -> Job:
+        """Prepare an uploaded mesh: it replaces the default mesh, or with `add` joins the scene beside the
+        others (the job's `mesh_id` once done)."""
 
-    def set_up(self, up: str) -> Job:
-        """Stand the current mesh with its stored axis `up` (one of `kinetre.mesh.upright.AXES`) as +Y (the page's override of the
-        up axis found on load): a job like an upload; KinetreError where that cannot be done."""
+    def set_up(self, up: str, mesh_id: int | None = None) -> Job:
+        """Stand mesh `mesh_id` (None: the default) with its stored axis `up` (one of
+        `kinetre.mesh.upright.AXES`) as +Y (the page's override of the up axis found on load): a job like an
+        upload; KinetreError where that cannot be done (MeshError for an unknown mesh)."""
+
+    async def remove_mesh(self, mesh_id: int) -> None:
+        """Remove a mesh, releasing its possessors; MeshError if unknown, the only one, or being recorded."""
 
     def start_recording(self) -> None: ...
 
@@ -96,7 +102,8 @@ class LocalScene:
     def __init__(self, hub: Channels, scene: Scene, player: MotionPlayer | None = None, nodes: int = NODES,
                  settle: float = 0.0, source: tuple | None = None):
         self.hub, self.scene, self.player, self.nodes = hub, scene, player, nodes
-        self.source = source  # (the mesh as loaded, its name): stood on another axis by `set_up`
+        # by mesh id, (the mesh as loaded, its name): stood on another axis by `set_up`
+        self.sources: dict[int, tuple] = {} if source is None else {scene.mesh_id: source}
         self.settle = settle  # s for the bus to carry the sample's subscription before it plays
         self.jobs = Jobs()
         self.takes = Takes()
@@ -110,23 +117,25 @@ class LocalScene:
     def state(self) -> dict:
         return self.scene.state()
 
-    def transforms_block(self) -> bytes:
-        return self.scene.transforms_block()
+    def transforms_blocks(self) -> list[bytes]:
+        return self.scene.transforms_blocks()
 
     async def mesh_json(self, mesh_id: int) -> bytes | None:
-        scene = self.scene
-        if mesh_id != scene.mesh_id:
+        m = self.scene.meshes.get(mesh_id)
+        if m is None:
             return None
-        return json.dumps(mesh_payload(scene.mesh, scene.graph, scene.mesh_id, scene.name)).encode()
+        return json.dumps(mesh_payload(m.mesh, m.graph, m.id, m.name)).encode()
 
     # --- what people do --------------------------------------------------------------------------------
     async def command(self, client: str, msg: dict, raw: bytes) -> None:
         kind, scene = msg["type"], self.scene
         client = person_client(client, parse_person(msg))  # one of several people in the page's camera
+        mesh = parse_mesh(msg)
         if kind == "possess":
+            scene.scene_mesh(mesh)  # an unknown mesh is refused before the sample stops
             if self.player is not None and client != SAMPLE_CLIENT:
                 await self.stop_sample()  # a live user takes over from the sample motion
-            await scene.possess(client, check_subset(msg.get("subset")), check_hand(msg.get("hand")))
+            await scene.possess(client, check_subset(msg.get("subset")), check_hand(msg.get("hand")), mesh)
         elif kind == "release":
             await scene.release(client)
         elif kind == "subset":
@@ -135,9 +144,9 @@ class LocalScene:
             pos = msg.get("position", [0, 0, 0])
             if not isinstance(pos, list):
                 raise ProtocolError("position must be a list of 3 numbers")
-            scene.place(float(msg.get("scale", 1.0)), pos, float(msg.get("yaw", 0.0)))
+            scene.place(float(msg.get("scale", 1.0)), pos, float(msg.get("yaw", 0.0)), mesh)
         elif kind == "fit":
-            scene.fit(client)
+            scene.fit(client, mesh)
         elif kind == "player":
             await (self.start_sample() if msg.get("on") else self.stop_sample())
         else:
@@ -171,26 +180,38 @@ class LocalScene:
             self.player.playing = False
             await self.scene.release(SAMPLE_CLIENT)
 
-    # --- mesh uploads ----------------------------------------------------------------------------------
-    def start_job(self, name: str, data: bytes, scan_options: dict | None = None) -> Job:
-        """Prepare an uploaded mesh in a worker thread; it replaces the scene's mesh when ready."""
+    # --- meshes ---------------------------------------------------------------------------------------
+    def _mesh_ready(self, job: Job, mesh, graph, name: str, upright, raw, replace: int | None) -> None:
+        """In the event loop: a prepared mesh replaces mesh `replace` or, with None, joins the scene."""
+        if self.player is not None:
+            self.player.playing = False
+        if replace is None:
+            job.mesh_id = self.scene.add_mesh(mesh, graph, name, upright)
+        else:
+            self.sources.pop(replace, None)
+            job.mesh_id = self.scene.replace_mesh(replace, mesh, graph, name, upright)
+        self.sources[job.mesh_id] = (raw, name)
+
+    def start_job(self, name: str, data: bytes, scan_options: dict | None = None, add: bool = False) -> Job:
+        """Prepare an uploaded mesh in a worker thread; when ready it replaces the default mesh, or with `add`
+        joins the scene beside the others."""
         job = self.jobs.new(name)
+        replace = None if add else self.scene.mesh_id
 
         def ready(mesh, graph, mesh_name: str, upright, raw) -> None:
-            if self.player is not None:
-                self.player.playing = False
-            self.source = (raw, mesh_name)
-            self.scene.set_mesh(mesh, graph, mesh_name, upright)
+            target = replace if replace in self.scene.meshes else (None if add else self.scene.mesh_id)
+            self._mesh_ready(job, mesh, graph, mesh_name, upright, raw, target)
 
         prepare_upload(job, data, self.nodes, asyncio.get_running_loop(), ready, scan_options)
         return job
 
-    def set_up(self, up: str) -> Job:
+    def set_up(self, up: str, mesh_id: int | None = None) -> Job:
         if up not in AXES:
             raise KinetreError(f"up must be one of {', '.join(AXES)}, got {up!r}")
-        if self.source is None:
+        target = self.scene.scene_mesh(mesh_id).id
+        if target not in self.sources:
             raise KinetreError("the mesh as loaded is not kept here: load it again to stand it on another axis")
-        raw, name = self.source
+        raw, name = self.sources[target]
         job = self.jobs.new(name)
         loop = asyncio.get_running_loop()
 
@@ -202,15 +223,20 @@ class LocalScene:
                 return
 
             def swap() -> None:
-                if self.player is not None:
-                    self.player.playing = False
-                self.scene.set_mesh(mesh, graph, name, upright)
+                if target not in self.scene.meshes:
+                    job.failed(f"{name}: the mesh was removed or replaced meanwhile")
+                    return
+                self._mesh_ready(job, mesh, graph, name, upright, raw, target)
                 job.stage, job.fraction, job.done = "ready", 1.0, True
 
             loop.call_soon_threadsafe(swap)
 
         threading.Thread(target=work, daemon=True).start()
         return job
+
+    async def remove_mesh(self, mesh_id: int) -> None:
+        self.scene.remove_mesh(mesh_id)
+        self.sources.pop(mesh_id, None)
 
     # --- takes -----------------------------------------------------------------------------------------
     def start_recording(self) -> None:
@@ -233,5 +259,5 @@ class LocalScene:
     async def close(self) -> None:
         for task in self.tasks:
             task.cancel()
-        self.scene.solver.close()
+        self.scene.close()
         self.takes.close()

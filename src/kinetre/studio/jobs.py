@@ -31,12 +31,15 @@ class Job:
     fraction: float = 0.0
     error: str = ""
     done: bool = False
+    mesh_id: int | None = None  # the mesh it made, once done
+
 
     def failed(self, error: str) -> None:
         self.error, self.stage, self.done = error, "failed", True
 
     def status(self) -> dict:
-        return {"stage": self.stage, "fraction": self.fraction, "error": self.error, "done": self.done}
+        return {"stage": self.stage, "fraction": self.fraction, "error": self.error, "done": self.done,
+                "mesh": self.mesh_id}
 
 
 class Jobs:

@@ -61,6 +61,15 @@ class Placement:
                 "matrix": self.matrix().T.reshape(-1).tolist()}  # column-major, as three.js Matrix4.elements
 
 
+def beside(boxes: list[tuple[np.ndarray, np.ndarray]], mesh: Mesh, like: Placement, gap: float = 0.3) -> Placement:
+    """Where a mesh added to a scene stands: with the scale and yaw of `like` (the default mesh's placement),
+    on its floor and at its depth, `gap` metres to the +x side of every world-space (min, max) box in
+    `boxes` (the meshes already there), so that no two meshes overlap."""
+    right = max((float(hi[0]) for _, hi in boxes), default=float(like.position[0]))
+    left = float((like.scale * mesh.vertices @ like.rotation.T)[:, 0].min())
+    return Placement(like.scale, (right + gap - left, float(like.position[1]), float(like.position[2])), like.yaw)
+
+
 def standing_mesh(mesh: Mesh, height: float = 1.6) -> Mesh:
     """The mesh scaled to `height` metres tall, centred on x = z = 0 with its lowest point on y = 0.
 

@@ -17,6 +17,8 @@ Client → server (WebSocket text, JSON objects with a "type"):
         (metres, +Y up), the wrist at the body's wrist, as a take records them (docs/take-format.md)
     "blendshapes": [52 numbers in 0..1] in FaceLandmarker's order (`BLENDSHAPES`: "_neutral", then the 51
         ARKit names), or null
+    "mesh": int on possess, fit and place: which of the scene's meshes (its id in the state's "meshes");
+        without it, the default (first) mesh, or for fit the mesh the user possesses
 
 Server → client: JSON {"type": "welcome" | "state" | "skeleton" | "stats" | "error" | "progress", …}
 and binary node-transform blocks (kinetre/wire/transforms.py).
@@ -176,6 +178,16 @@ def parse_person(msg: dict) -> int | None:
     if type(person) is not int or not 1 <= person <= MAX_PERSON:
         raise ProtocolError(f"'person' must be an integer 1..{MAX_PERSON}, got {person!r}")
     return person
+
+
+def parse_mesh(msg: dict) -> int | None:
+    """The "mesh" of a message (a mesh id of the scene), or None for the default mesh."""
+    mesh = msg.get("mesh")
+    if mesh is None:
+        return None
+    if type(mesh) is not int or mesh < 1:
+        raise ProtocolError(f"'mesh' must be a mesh id (a positive integer), got {mesh!r}")
+    return mesh
 
 
 def person_client(client: str, person: int | None) -> str:

@@ -4,6 +4,8 @@ A take is written as GLB (the mesh animated), node transforms (the page replays 
 and, when a user drove it, BVH and the skeleton stream of its first user, with that user's hands and face
 blendshapes as `kinetre capture` records a person's (so `kinetre avatar` drives fingers and expressions from
 it). Each take gets a folder of its own under the studio's take directory, served as /api/takes/<id>/<file>.
+In a scene of several meshes each mesh that moved is written: the default mesh's files as `take.*` (kinds
+"glb", "transforms", "bvh", "stream"), mesh N's as `take-mesh<N>.*` (kinds "glb-N", …).
 """
 from __future__ import annotations
 
@@ -47,36 +49,45 @@ class Takes:
 
 
 async def record_take(scene: Scene, takes: Takes, fps: float = TAKE_FPS) -> dict:
-    """Stop the scene's recording and export the take; {"take", "frames", "fps", "files": {kind: url}}."""
-    take = resample(scene.stop_recording(), fps)
-    if not take:
+    """Stop the scene's recording and export the take; {"take", "frames", "fps", "files": {kind: url},
+    "meshes": [{"id", "name", "frames"}]} (every mesh that moved)."""
+    recorded = {i: resample(frames, fps) for i, frames in scene.stop_recordings().items()}
+    recorded = {i: take for i, take in recorded.items() if take and i in scene.meshes}
+    if not recorded:
         raise KinetreError("the take is empty: possess the mesh (or play the sample) while recording")
     take_id, folder = takes.new()
-    files = await asyncio.to_thread(export_take, folder, scene.mesh, scene.graph, take, fps)
-    return {"take": take_id, "frames": len(take), "fps": fps,
-            "files": {k: f"/api/takes/{take_id}/{v}" for k, v in files.items()}}
+    files, meshes = {}, []
+    for mesh_id, take in recorded.items():
+        m = scene.meshes[mesh_id]
+        suffix = "" if mesh_id == scene.mesh_id else f"-{mesh_id}"
+        written = await asyncio.to_thread(export_take, folder, m.mesh, m.graph, take, fps,
+                                          "take" if not suffix else f"take-mesh{mesh_id}")
+        files.update({k + suffix: f"/api/takes/{take_id}/{v}" for k, v in written.items()})
+        meshes.append({"id": mesh_id, "name": m.name, "frames": len(take)})
+    return {"take": take_id, "frames": max(m["frames"] for m in meshes), "fps": fps, "files": files,
+            "meshes": meshes}
 
 
-def export_take(folder: Path, mesh, graph, take, fps: float) -> dict[str, str]:
+def export_take(folder: Path, mesh, graph, take, fps: float, stem: str = "take") -> dict[str, str]:
     """Write the take as GLB (the mesh animated), node transforms (physics replay), BVH and the skeleton
-    stream of its first user."""
+    stream of its first user, as `stem`.glb and so on."""
     from ..export.gltf import write_gltf
     files = {}
-    write_gltf(folder / "take.glb", mesh, graph, [f.pose for f in take], fps)
-    files["glb"] = "take.glb"
+    write_gltf(folder / f"{stem}.glb", mesh, graph, [f.pose for f in take], fps)
+    files["glb"] = f"{stem}.glb"
     from ..physics.take import write_take_transforms  # the page replays the physics from these
-    write_take_transforms(folder / "take.transforms", graph, [f.pose for f in take], fps)
-    files["transforms"] = "take.transforms"
+    write_take_transforms(folder / f"{stem}.transforms", graph, [f.pose for f in take], fps)
+    files["transforms"] = f"{stem}.transforms"
     clients = [c for c in take[0].skeletons]
     if clients:
         first = [f for f in take if f.skeletons.get(clients[0]) is not None]
         frames = [f.skeletons[clients[0]] for f in first]
         from ..export.bvh import write_bvh
-        write_bvh(folder / "take.bvh", frames, fps)
-        files["bvh"] = "take.bvh"
+        write_bvh(folder / f"{stem}.bvh", frames, fps)
+        files["bvh"] = f"{stem}.bvh"
         from ..motion import stream
-        stream.write_stream(folder / "take.kinetre.jsonl", user_take(first, clients[0], fps))
-        files["stream"] = "take.kinetre.jsonl"
+        stream.write_stream(folder / f"{stem}.kinetre.jsonl", user_take(first, clients[0], fps))
+        files["stream"] = f"{stem}.kinetre.jsonl"
     return files
 
 

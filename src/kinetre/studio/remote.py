@@ -20,6 +20,7 @@ import time
 from pathlib import Path
 
 from ..errors import KinetreError
+from ..wire.transforms import HEADER
 from .channels import Frame, now_ms
 from .host import LocalScene, answer_error, apply
 from .jobs import MAX_UPLOAD, Job, Jobs
@@ -29,10 +30,10 @@ from .placement import Placement
 from .player import sample_player
 from .protocol import ProtocolError, parse_message
 from .recording import Takes
-from .scene import Scene
+from .scene import MeshError, Scene
 from .solve_worker import SolveWorker, freeze_heap
-from .subjects import (COMMANDS, FILES, JOBS, STATE, TAKES, TRANSFORMS, UPLOAD, command_subject, last_token,
-                       skeleton_subject)
+from .subjects import (COMMANDS, FILES, JOBS, MESH_TRANSFORMS, MESHES, STATE, TAKES, TRANSFORMS, UPLOAD,
+                       command_subject, is_transforms, last_token, skeleton_subject)
 
 log = logging.getLogger("kinetre.network")
 
@@ -76,13 +77,20 @@ class SceneMirror:
     def __init__(self, hub: NatsChannels):
         self.hub = hub
         self.latest: dict | None = None
-        self.block: bytes | None = None
+        self.blocks: dict[int, bytes] = {}  # the newest transform block of each mesh, by mesh id
         self.heard = 0.0  # monotonic time of the last state
         self.lost = True  # until the scene is first heard
 
     @property
     def mesh_id(self) -> int:
         return self.latest["mesh"]["id"] if self.latest else 0
+
+    @property
+    def mesh_ids(self) -> list[int]:
+        """The scene's meshes, the default first (a scene that names no list has one mesh)."""
+        if self.latest is None:
+            return []
+        return [m["id"] for m in self.latest.get("meshes") or [self.latest["mesh"]]]
 
     def state(self) -> dict:
         if self.latest is None:
@@ -92,20 +100,21 @@ class SceneMirror:
         return {**self.latest, "scene_lost": self.lost,
                 "bus": {"gaps": c.gaps, "late": c.late, "offline": c.offline, "reconnects": c.reconnects}}
 
-    def transforms_block(self) -> bytes | None:
-        return self.block
+    def transforms_blocks(self) -> list[bytes]:
+        return [self.blocks[i] for i in self.mesh_ids if i in self.blocks]
 
     async def run(self) -> None:
         """Follow the scene's state and transforms; announce "scene lost" to this gateway's pages."""
-        sub = self.hub.subscribe(STATE, TRANSFORMS)
+        sub = self.hub.subscribe(STATE, TRANSFORMS, MESH_TRANSFORMS)
         watchdog = asyncio.get_running_loop().create_task(self._watch())
         try:
             while True:
                 frame = await sub.next()
                 if frame is None:
                     return
-                if frame.subject == TRANSFORMS:
-                    self.block = frame.data
+                if is_transforms(frame.subject):
+                    if len(frame.data) >= HEADER.size:
+                        self.blocks[HEADER.unpack_from(frame.data)[2]] = frame.data  # by the block's mesh id
                     continue
                 try:
                     state = json.loads(frame.data)
@@ -114,6 +123,8 @@ class SceneMirror:
                 if state.get("scene_lost"):
                     continue  # our own announcement, delivered locally
                 self.latest, self.heard = state, time.monotonic()
+                for gone in set(self.blocks) - set(self.mesh_ids):
+                    del self.blocks[gone]  # a removed or replaced mesh
                 # only the possessing users' frames are waited for (by the solve): the others' may be batched
                 self.hub.batched = frozenset(skeleton_subject(u['client']) for u in state.get("users", ())
                                              if not u.get("possessing"))
@@ -143,7 +154,7 @@ class GatewayScene:
         self.jobs = Jobs()
         self.takes = Takes()
         self.tasks: list[asyncio.Task] = []
-        self._mesh: tuple[int, bytes] | None = None  # the last mesh payload fetched, by id
+        self._meshes: dict[int, bytes] = {}  # the mesh payloads fetched, by id
 
     @property
     def mesh_id(self) -> int:
@@ -152,8 +163,8 @@ class GatewayScene:
     def state(self) -> dict:
         return self.mirror.state()
 
-    def transforms_block(self) -> bytes | None:
-        return self.mirror.block
+    def transforms_blocks(self) -> list[bytes]:
+        return self.mirror.transforms_blocks()
 
     async def command(self, client: str, msg: dict, raw: bytes) -> None:
         self.hub.publish(Frame(command_subject(client), 0, now_ms(), raw))
@@ -161,7 +172,7 @@ class GatewayScene:
     def forget(self, client: str) -> None:
         self.hub.publish(Frame(command_subject(client), 0, now_ms(), b'{"type": "bye"}'))
 
-    def set_up(self, up: str) -> Job:
+    def set_up(self, up: str, mesh_id: int | None = None) -> Job:
         raise KinetreError("this studio relays to a remote scene: its mesh is stood up on the scene's own studio")
 
     def set_joint_map(self, joint_map) -> dict | None:
@@ -169,11 +180,20 @@ class GatewayScene:
                            "studio, not through a gateway")
 
     async def mesh_json(self, mesh_id: int) -> bytes | None:
-        if mesh_id != self.mesh_id:
+        held = self.mirror.mesh_ids
+        if mesh_id not in held:
             return None
-        if self._mesh is None or self._mesh[0] != mesh_id:
-            self._mesh = (mesh_id, await fetch(self.hub, {"mesh": mesh_id}))
-        return self._mesh[1]
+        if mesh_id not in self._meshes:
+            self._meshes[mesh_id] = await fetch(self.hub, {"mesh": mesh_id})
+        for gone in set(self._meshes) - set(held):
+            del self._meshes[gone]
+        return self._meshes[mesh_id]
+
+    async def remove_mesh(self, mesh_id: int) -> None:
+        held = self.mirror.mesh_ids
+        if mesh_id not in held:
+            raise MeshError(f"no mesh {mesh_id} in the scene (its meshes: {', '.join(map(str, held))})", 404)
+        answer(await self.hub.request(MESHES, json.dumps({"remove": mesh_id}).encode()))
 
     def start_recording(self) -> None:
         self.hub.publish(Frame(command_subject(RECORDER), 0, now_ms(), b'{"type": "record"}'))
@@ -186,26 +206,28 @@ class GatewayScene:
             (folder / name).write_bytes(await fetch(self.hub, {"take": result["take"], "name": name}, 60))
         return result
 
-    def start_job(self, name: str, data: bytes, scan_options: dict | None = None) -> Job:
+    def start_job(self, name: str, data: bytes, scan_options: dict | None = None, add: bool = False) -> Job:
         """Send the upload to the scene in chunks; the local job follows the scene's job."""
         job = self.jobs.new(name)
-        self.tasks.append(asyncio.get_running_loop().create_task(self._upload(job, data, scan_options or {})))
+        self.tasks.append(asyncio.get_running_loop().create_task(self._upload(job, data, scan_options or {}, add)))
         return job
 
-    async def _upload(self, job: Job, data: bytes, scan_options: dict) -> None:
+    async def _upload(self, job: Job, data: bytes, scan_options: dict, add: bool) -> None:
         try:
             count = max(1, -(-len(data) // CHUNK))
             upload = f"{id(job)}-{job.id}"
             remote = None
             for index in range(count):
                 job.stage, job.fraction = "sending to the scene", 0.05 * index / count
-                head = {"upload": upload, "name": job.name, "part": index, "parts": count, "scan": scan_options}
+                head = {"upload": upload, "name": job.name, "part": index, "parts": count, "scan": scan_options,
+                        "add": add}
                 reply = answer(await self.hub.request(
                     UPLOAD, json.dumps(head).encode() + b"\n" + data[index * CHUNK:(index + 1) * CHUNK], 30))
                 remote = json.loads(reply).get("job")
             while True:
                 status = json.loads(answer(await self.hub.request(JOBS, json.dumps({"job": remote}).encode())))
                 job.stage, job.fraction, job.error = status["stage"], status["fraction"], status["error"]
+                job.mesh_id = status.get("mesh")
                 if status["done"]:
                     job.done = True
                     return
@@ -231,7 +253,7 @@ async def serve_scene(mesh_path: str | None, url: str, room: str = "main", token
     mesh, graph = await asyncio.to_thread(prepare_mesh, path, nodes)
     # connected only once the scene exists: nobody may hear of it before it subscribes (see below)
     bus = NatsChannels(room)
-    scene = Scene(bus, mesh, graph, Path(path).name, solver=SolveWorker())
+    scene = Scene(bus, mesh, graph, Path(path).name, solver=SolveWorker(), new_solver=SolveWorker)
     host = LocalScene(bus, scene, nodes=nodes, settle=0.1)  # the sample's frames make a round trip
     await bus.start(url, token, name="kinetre-scene", nkey=nkey)
     if sample_motion and mesh_path is None:
@@ -278,7 +300,8 @@ async def serve_scene(mesh_path: str | None, url: str, room: str = "main", token
             raise KinetreError(f"over the {MAX_UPLOAD >> 20} MB limit")
         if head["part"] + 1 < head["parts"]:
             return b"{}"
-        job = host.start_job(head["name"], b"".join(uploads.pop(head["upload"])), head.get("scan") or None)
+        job = host.start_job(head["name"], b"".join(uploads.pop(head["upload"])), head.get("scan") or None,
+                             add=bool(head.get("add")))
         return json.dumps({"job": job.id}).encode()
 
     async def jobs(data: bytes) -> bytes:
@@ -287,15 +310,18 @@ async def serve_scene(mesh_path: str | None, url: str, room: str = "main", token
             raise KinetreError("no such job")
         return json.dumps(job.status()).encode()
 
+    async def meshes(data: bytes) -> bytes:
+        await host.remove_mesh(int(json.loads(data)["remove"]))
+        return b"{}"
+
     async def beat() -> None:
         while True:
             await asyncio.sleep(BEAT)
             scene.publish_state()
-            if scene.rig is None:  # idle: gateways that joined late still get the pose
-                bus.publish(Frame(TRANSFORMS, scene.seq, now_ms(), scene.transforms_block()))
+            scene.publish_rest()  # idle meshes: gateways that joined late still get their poses
 
     await bus.listen(COMMANDS, command)
-    for subject, handler in ((FILES, files), (TAKES, takes), (UPLOAD, upload), (JOBS, jobs)):
+    for subject, handler in ((FILES, files), (TAKES, takes), (UPLOAD, upload), (JOBS, jobs), (MESHES, meshes)):
         await bus.serve(subject, handler)
     await host.start()
     heartbeat = asyncio.get_running_loop().create_task(beat())

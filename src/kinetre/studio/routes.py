@@ -1,14 +1,18 @@
 """The studio's HTTP routes: scene state, meshes and their upload jobs, voice commands, takes, joint maps.
 
     GET  /api/state            the scene state (JSON)
-    GET  /api/mesh/{id}        the current mesh with its skinning data (JSON, base64 arrays)
-    POST /api/mesh/up?up=AXIS  stand the current mesh with that stored axis (y, z, x, -x, -y, -z) up (the page's override of the up
-                               axis found on load, mesh/upright.py): a job like an upload
+    GET  /api/mesh/{id}        one of the scene's meshes with its skinning data (JSON, base64 arrays)
+    POST /api/mesh/up?up=AXIS  stand the default mesh (&mesh=ID: that one) with that stored axis (y, z, x, -x,
+                               -y, -z) up (the page's override of the up axis found on load, mesh/upright.py):
+                               a job like an upload
     POST /api/mesh?name=F      upload a mesh file (OBJ/PLY/STL/GLB…): a job that loads it and builds the graph;
+                               it replaces the default mesh, or with &add=1 joins the scene beside the others;
                                a .zip of RGB-D frames (TUM or Redwood layout) is scanned into a mesh first
                                (&segment=plane|none, &voxel=metres)
-    GET  /api/jobs/{id}        a job's stage, progress fraction and readable error
+    DELETE /api/mesh/{id}      remove a mesh (its possessors let go); the scene keeps at least one
+    GET  /api/jobs/{id}        a job's stage, progress fraction, readable error and, once done, its mesh id
     POST /api/voice?client=C   16 kHz mono WAV: recognised offline, "possess"/"release"/subset applied for C
+                               (&mesh=ID: "possess" takes that mesh)
     POST /api/record/start     start recording a take; /api/record/stop ends it and exports GLB, BVH, stream
                                and the node transforms the page replays the physics from
     GET  /api/takes/{id}/{f}   a file of a recorded take
@@ -30,7 +34,23 @@ from ..errors import KinetreError
 from .channels import Channels
 from .host import SceneHost, apply
 from .jobs import MAX_UPLOAD
+from .scene import MeshError
 from .uploads import read_upload
+
+
+def query_mesh(request: Request) -> int | None:
+    """The request's `mesh` query parameter (a mesh id), None without one; MeshError (400) if not an id."""
+    value = request.query_params.get("mesh")
+    if value is None or value == "":
+        return None
+    if not value.isdigit() or int(value) < 1:
+        raise MeshError(f"mesh must be a mesh id (a positive integer), got {value!r}")
+    return int(value)
+
+
+def refused(exc: KinetreError) -> JSONResponse:
+    """A refused request: 404 for a mesh the scene does not hold, else 400."""
+    return JSONResponse({"error": str(exc)}, getattr(exc, "status", 400))
 
 
 def api_routes(host: SceneHost, hub: Channels, connected: Callable[[str], bool]) -> list[Route]:
@@ -46,9 +66,13 @@ def api_routes(host: SceneHost, hub: Channels, connected: Callable[[str], bool])
         return Response(payload, media_type="application/json")
 
     async def mesh_post(request: Request) -> Response:
-        name, data, refused = await read_upload(request, "mesh", MAX_UPLOAD)
-        if refused is not None:
-            return refused
+        add = request.query_params.get("add", "0")
+        if add not in ("0", "1"):
+            return JSONResponse({"error": f"add must be 0 (replace the default mesh) or 1 (add one), got {add!r}"},
+                                400)
+        name, data, too_big = await read_upload(request, "mesh", MAX_UPLOAD)
+        if too_big is not None:
+            return too_big
         scan_options = {}
         if name.lower().endswith(".zip"):  # the "Scan" entry: RGB-D frames, segmented by plane by default
             segment = request.query_params.get("segment", "plane")
@@ -59,27 +83,39 @@ def api_routes(host: SceneHost, hub: Channels, connected: Callable[[str], bool])
             except ValueError:
                 return JSONResponse({"error": f"{name}: voxel must be a number in metres"}, 400)
             scan_options = {"segment": None if segment == "none" else segment, "voxel": voxel}
-        job = host.start_job(name, data, scan_options)
+        job = host.start_job(name, data, scan_options, add=add == "1")
         return JSONResponse({"job": job.id}, 202)
 
     async def mesh_up(request: Request) -> Response:
         try:
-            job = host.set_up(request.query_params.get("up", ""))
+            job = host.set_up(request.query_params.get("up", ""), query_mesh(request))
         except KinetreError as exc:
-            return JSONResponse({"error": str(exc)}, 400)
+            return refused(exc)
         return JSONResponse({"job": job.id}, 202)
+
+    async def mesh_delete(request: Request) -> Response:
+        mesh_id = int(request.path_params["mesh_id"])
+        try:
+            await host.remove_mesh(mesh_id)
+        except KinetreError as exc:
+            return refused(exc)
+        return JSONResponse({"removed": mesh_id})
 
     async def job_get(request: Request) -> Response:
         job = host.jobs.get(int(request.path_params["job_id"]))
         if job is None:
             return JSONResponse({"error": "no such job"}, 404)
         return JSONResponse({"job": job.id, "name": job.name, **job.status(),
-                             "mesh": host.mesh_id if job.done and not job.error else None})
+                             "mesh": job.mesh_id if job.done and not job.error else None})
 
     voice_decoder: dict = {}
 
     async def voice_post(request: Request) -> Response:
         client = request.query_params.get("client", "")
+        try:
+            mesh = query_mesh(request)
+        except KinetreError as exc:
+            return refused(exc)
         data = await request.body()
         from .voice import Recogniser, recognise
         try:
@@ -97,7 +133,7 @@ def api_routes(host: SceneHost, hub: Channels, connected: Callable[[str], bool])
         result = {"verb": command.verb, "subset": command.subset, "text": command.text}
         if connected(client):
             if command.verb == "possess":
-                msg = {"type": "possess", "subset": command.subset}
+                msg = {"type": "possess", "subset": command.subset, "mesh": mesh}
             elif command.verb == "release":
                 msg = {"type": "release"}
             elif command.subset is not None:
@@ -144,6 +180,7 @@ def api_routes(host: SceneHost, hub: Channels, connected: Callable[[str], bool])
         Route("/api/jointmap", joint_map, methods=["POST", "DELETE"]),
         Route("/api/state", state),
         Route("/api/mesh/{mesh_id:int}", mesh_get),
+        Route("/api/mesh/{mesh_id:int}", mesh_delete, methods=["DELETE"]),
         Route("/api/mesh", mesh_post, methods=["POST"]),
         Route("/api/mesh/up", mesh_up, methods=["POST"]),
         Route("/api/jobs/{job_id:int}", job_get),

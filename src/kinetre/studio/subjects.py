@@ -5,10 +5,14 @@ The data path, in subjects:
     capture client ──SKELETONS──▶ scene ──TRANSFORMS, STATE──▶ viewers
                     (skeleton_subject(c), one per user)        (client_subject(c): replies to one client)
 
+A scene of several meshes publishes the default (first) mesh's transform blocks on TRANSFORMS and each
+other mesh's on `transforms_subject(id)` (MESH_TRANSFORMS matches them all): latest-wins is per subject, so
+a slow viewer still gets every mesh's newest block.
+
 With the scene in its own process (remote.py), a gateway forwards each page's commands on
-`command_subject(c)` and asks the scene for files, uploads, upload jobs and takes on FILES, UPLOAD, JOBS
-and TAKES. Names follow NATS syntax (dot-separated tokens, `*` one token); a NATS bus maps them into one
-room on the wire by putting the room after the namespace (natsbus.py).
+`command_subject(c)` and asks the scene for files, uploads, upload jobs, takes and mesh removals on FILES,
+UPLOAD, JOBS, TAKES and MESHES. Names follow NATS syntax (dot-separated tokens, `*` one token); a NATS bus
+maps them into one room on the wire by putting the room after the namespace (natsbus.py).
 """
 from __future__ import annotations
 
@@ -16,6 +20,7 @@ NAMESPACE = "kinetre."
 SKELETON_PREFIX = NAMESPACE + "skeleton."
 SKELETONS = SKELETON_PREFIX + "*"
 TRANSFORMS = NAMESPACE + "transforms"
+MESH_TRANSFORMS = TRANSFORMS + ".*"
 STATE = NAMESPACE + "state"
 CLIENT_PREFIX = NAMESPACE + "client."
 COMMAND_PREFIX = NAMESPACE + "command."
@@ -24,6 +29,7 @@ FILES = NAMESPACE + "files"  # request: a chunk of a mesh payload or a take file
 UPLOAD = NAMESPACE + "upload"  # request: a chunk of an uploaded mesh
 JOBS = NAMESPACE + "jobs"  # request: an upload job's progress
 TAKES = NAMESPACE + "takes"  # request: stop recording and export the take
+MESHES = NAMESPACE + "meshes"  # request: remove a mesh
 
 # The second token says how a subject is delivered: live ones latest-wins (a slow reader gets the newest
 # frame), queued ones message by message (every reply must reach its page, every command its scene).
@@ -34,6 +40,16 @@ QUEUED_KINDS = ("client", "command")
 def skeleton_subject(client: str) -> str:
     """The subject a capture client's (or a player's) skeleton frames go on: one per user, under SKELETONS."""
     return SKELETON_PREFIX + client
+
+
+def transforms_subject(mesh_id: int) -> str:
+    """The subject of the transform blocks of a mesh other than the default one."""
+    return f"{TRANSFORMS}.{int(mesh_id)}"
+
+
+def is_transforms(subject: str) -> bool:
+    """Whether `subject` carries transform blocks (TRANSFORMS or a `transforms_subject`)."""
+    return subject == TRANSFORMS or subject.startswith(TRANSFORMS + ".")
 
 
 def client_subject(client: str) -> str:

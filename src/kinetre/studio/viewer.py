@@ -18,7 +18,8 @@ from .channels import Channels, Frame
 from .fanout import Framing, raw_socket
 from .host import ANSWERED, SCENE_COMMANDS, SceneHost, answer_error, reply
 from .protocol import ProtocolError, parse_frame, parse_message, parse_person, person_client, with_client
-from .subjects import SKELETON_PREFIX, SKELETONS, STATE, TRANSFORMS, client_subject, skeleton_subject
+from .subjects import (MESH_TRANSFORMS, SKELETON_PREFIX, SKELETONS, STATE, TRANSFORMS, client_subject, is_transforms,
+                       skeleton_subject)
 
 
 @dataclass
@@ -33,7 +34,7 @@ class ClientStats:
     ack: asyncio.Event = field(default_factory=asyncio.Event)
     transforms_sent: int = 0
     transforms_skipped: int = 0  # scene frames this client never got: replaced by newer ones (latest wins)
-    transforms_seq: int = 0
+    transforms_seq: dict = field(default_factory=dict)  # per transforms subject (one per mesh), the last seq
 
 
 class Viewer:
@@ -42,7 +43,7 @@ class Viewer:
     def __init__(self, ws: WebSocket, client: str, hub: Channels, host: SceneHost, framing: Framing):
         self.ws, self.client, self.hub, self.host, self.framing = ws, client, hub, host, framing
         self.stats = ClientStats()
-        self.sub = hub.subscribe(urgent=(TRANSFORMS, STATE, client_subject(client)))
+        self.sub = hub.subscribe(urgent=(TRANSFORMS, MESH_TRANSFORMS, STATE, client_subject(client)))
 
     async def run(self) -> None:
         """Greet the page, then serve it until it disconnects."""
@@ -50,16 +51,16 @@ class Viewer:
         await ws.send_text(json.dumps({"type": "welcome", "client": self.client,
                                        "channel": skeleton_subject(self.client)}))
         await ws.send_text(json.dumps(host.state()))
-        block = host.transforms_block()  # None while a remote scene has not been heard yet
-        if block is not None:
+        blocks = host.transforms_blocks()  # none while a remote scene has not been heard yet
+        for block in blocks:
             await ws.send_bytes(block)
-            stats.transforms_sent = 1  # a count of every transform block the page got, this one included
-        stats.sent = 3 if block is not None else 2
+        stats.transforms_sent = len(blocks)  # a count of every transform block the page got, these included
+        stats.sent = 2 + len(blocks)
         raw = raw_socket(ws.scope)
         if raw is not None:
             def direct(frame: Frame) -> bool:
                 """A transform block written in the publisher's call when the page can take it now."""
-                if frame.subject != TRANSFORMS or not raw.ready() or (
+                if not is_transforms(frame.subject) or not raw.ready() or (
                         stats.window and stats.sent - stats.acked >= stats.window):
                     return False  # send_loop delivers it (latest wins) once the page can take it
                 self._count_transforms(frame)
@@ -127,9 +128,10 @@ class Viewer:
     def _count_transforms(self, frame: Frame) -> None:
         stats = self.stats
         stats.sent += 1  # counted before any await: an ack may arrive before the send returns
-        if stats.transforms_seq and frame.seq > stats.transforms_seq + 1:
-            stats.transforms_skipped += frame.seq - stats.transforms_seq - 1
-        stats.transforms_seq, stats.transforms_sent = frame.seq, stats.transforms_sent + 1
+        last = stats.transforms_seq.get(frame.subject, 0)
+        if last and frame.seq > last + 1:
+            stats.transforms_skipped += frame.seq - last - 1
+        stats.transforms_seq[frame.subject], stats.transforms_sent = frame.seq, stats.transforms_sent + 1
 
     async def _send_loop(self) -> None:
         # One sender per connection: a slow viewer only ever has the newest frame per subject waiting.
@@ -147,7 +149,7 @@ class Viewer:
             skeleton = frame.subject.startswith(SKELETON_PREFIX)
             if skeleton and (not stats.skeletons or frame.subject.endswith(own)):
                 continue  # other users' skeletons only for viewers that asked; a page draws its own
-            if frame.subject == TRANSFORMS:
+            if is_transforms(frame.subject):
                 self._count_transforms(frame)
                 await ws.send_bytes(frame.data)
             else:
