@@ -1,8 +1,10 @@
 // Several people in one camera, and the up axis, in Debian's Chromium (tests/e2e/test_people_page.py and
 // benchmarks/bench_tracking.py):
-//   node driver_people.mjs '{"scenario": "horse" | "up" | "track", "url": "...", "video": "...", ...}'
+//   node driver_people.mjs '{"scenario": "horse" | "meshes" | "up" | "track", "url": "...", "video": "...", ...}'
 // horse: two people in the fake camera become two users with stable ids, possessing the mesh's front and
 //        back halves through the joint map `map`;
+// meshes: a second mesh (`add`) joins the scene from the "Add mesh" picker; the people list gives the second
+//        person that mesh; Fit and Possess, then each mesh's box and sampled vertices while they dance;
 // up:    the mesh's box as shown, then after one click on the up-axis button;
 // track: detection rate, render rate and capture → transforms latency while `seconds` of tracking run.
 import { mkdirSync, readFileSync } from 'node:fs';
@@ -119,6 +121,65 @@ async function horse() {
   }
 }
 
+/** Largest displacement (metres) of any sampled vertex over the samples. */
+function spread(samples) {
+  let most = 0;
+  for (let v = 0; v < samples[0].length; v++) {
+    for (let a = 1; a < samples.length; a++) {
+      most = Math.max(most, Math.hypot(...samples[a][v].map((x, k) => x - samples[0][v][k])));
+    }
+  }
+  return most;
+}
+
+async function meshes() {
+  const browser = await launchWithCamera(resolve(config.video));
+  try {
+    const page = await open(browser);
+    await page.setInputFiles('#file-add', resolve(config.add));
+    await until(page, () => window.kinetre.state().meshes.filter((m) => m.loaded).length === 2, null, 180000);
+    result.added = (await state(page)).meshes.map((m) => ({ id: m.id, name: m.name, box: m.meshBox }));
+    await startCamera(page, 2);
+    const bothInView = () => until(page, () => window.kinetre.state().people.length >= 2, null, 120000);
+    await bothInView();
+    const [first, second] = result.added.map((m) => m.id);
+    const other = (await state(page)).personUsers.find((p) => p.user.includes('p')).id;
+    await page.selectOption(`select[data-person="${other}"]`, String(second));
+    const before = (await state(page)).meshes.map((m) => m.meshBox);
+    await page.keyboard.press('f');
+    await until(page, (b) => window.kinetre.state().meshes.every((m, i) => m.meshBox.min[2] !== b[i].min[2]), before, 30000);
+    await bothInView();
+    await page.keyboard.press('p');
+    await until(page, () => {
+      const s = window.kinetre.state();
+      return (s.personUsers.length >= 2 && s.personUsers.every((p) => p.possessing)) || document.querySelector('#message').className === 'error';
+    }, null, 90000);
+    const s = await state(page);
+    result.message = s.message;
+    result.possessed = s.personUsers;
+    result.possessors = s.meshes.map((m) => ({ id: m.id, possessors: m.possessors }));
+    if (!s.personUsers.every((p) => p.possessing)) throw new Error(`possess failed: ${s.message}`);
+    await screenshot(page, 'people-meshes.png');
+    // per sample: each mesh's vertices and box centre, and each person's hip centre (world metres)
+    const samples = [];
+    for (let i = 0; i < 12; i++) {
+      samples.push(await page.evaluate(() => {
+        const k = window.kinetre.state();
+        const people = window.kinetre.studio.capture.people;
+        return { meshes: k.meshes.map((m) => ({ vertices: m.vertices,
+          centre: m.meshBox.min.map((x, j) => (x + m.meshBox.max[j]) / 2) })),
+          hips: Object.fromEntries(k.personUsers.map((p) => [p.user, people.frames.get(p.id)?.positions[0] ?? null])) };
+      }));
+      await page.waitForTimeout(400);
+    }
+    result.spreads = [0, 1].map((i) => spread(samples.map((x) => x.meshes[i].vertices)));
+    result.samples = samples.map((x) => ({ centres: x.meshes.map((m) => m.centre), hips: x.hips }));
+    result.ids = [first, second];
+  } finally {
+    await browser.close();
+  }
+}
+
 async function up() {
   const browser = await launchWithCamera(null);
   try {
@@ -175,5 +236,5 @@ async function track() {
   }
 }
 
-const scenarios = { horse, up, track };
+const scenarios = { horse, meshes, up, track };
 await report(result, () => scenarios[config.scenario](), { t0, out: config.out });

@@ -68,6 +68,34 @@ def test_two_people_in_one_camera_carry_the_two_halves_of_one_mesh(two_people, t
     assert max(r["halfSpreads"]) > 0.02
 
 
+def test_two_people_each_possess_a_mesh_of_their_own(two_people, tmp_path):
+    """Person A keeps the default mesh, person B is given the mesh added from the page: each mesh is possessed
+    by its own person only, and both move, each where its person dances."""
+    proc, url = start_server(None, nodes=32, sample_motion=False)
+    try:
+        r = drive(url, "meshes", "?noshadows&nohands&noface", video=str(two_people),
+                  add=str(horse_obj(tmp_path / "horse.obj")), out=str(ARTIFACTS / "people-meshes.json"))
+    finally:
+        proc.terminate()
+        proc.wait(10)
+    assert [s for s in r["steps"] if "error" in s["step"]] == [], r["steps"]
+    first, second = r["added"]
+    assert first["name"] == "spot.obj" and second["name"] == "horse.obj"
+    assert second["box"]["min"][0] > first["box"]["max"][0]  # added beside the first, not inside it
+    users = {p["user"]: p for p in r["possessed"]}
+    main = min(users, key=len)  # the page's own user; the other person is <client>p<id>
+    other = next(u for u in users if u != main)
+    assert users[main]["mesh"] == first["id"] and users[other]["mesh"] == second["id"]
+    assert r["possessors"] == [{"id": first["id"], "possessors": [main]}, {"id": second["id"], "possessors": [other]}]
+    assert min(r["spreads"]) > 0.02, r["spreads"]  # both meshes move
+    # each mesh stays with its own person: its centre nearer (across the floor) to that person's hips
+    for sample in r["samples"]:
+        hips = [np.array(sample["hips"][u])[[0, 2]] for u in (main, other)]
+        for i, centre in enumerate(np.array(sample["centres"])[:, [0, 2]]):
+            own, theirs = (np.linalg.norm(centre - h) for h in (hips[i], hips[1 - i]))
+            assert own < theirs, (i, own, theirs)
+
+
 def test_a_z_up_mesh_stands_upright_and_one_click_overrides_it(data_dir, tmp_path):
     armadillo = load_mesh(data_dir / "meshes" / "armadillo.obj")
     quarter = trimesh.transformations.rotation_matrix(np.pi / 2, [1, 0, 0])[:3, :3]  # +Y up → stored +Z up

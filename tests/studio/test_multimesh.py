@@ -1,15 +1,21 @@
 """Several meshes in one scene: each user possesses the mesh it names, each mesh is solved from its own
 possessors only, on a subject of its own; releasing and removing a mesh let go; bad mesh ids are refused."""
 import asyncio
+import json
+import time
 
+import httpx
 import numpy as np
 import pytest
+from studio.conftest import start_server
 from studio.fixtures_horse import horse_obj
+from studio.studio_ws import StudioClient, frame_message
 
 import kinetre
 from kinetre.skeleton.models import Skeleton
 from kinetre.studio.channels import Frame, Hub
 from kinetre.studio.meshes import data_path, prepare_mesh
+from kinetre.studio.protocol import person_client
 from kinetre.studio.scene import MeshError, Scene
 from kinetre.studio.subjects import MESH_TRANSFORMS, TRANSFORMS, transforms_subject
 from kinetre.wire.transforms import unpack_transforms
@@ -127,3 +133,74 @@ def test_removing_a_mesh_releases_its_possessors_and_bad_ids_are_refused(two_mes
 
     user, b = asyncio.run(go())
     assert user["possessing"] is False and user["mesh"] is None and b.bind is None
+
+
+def wait_job(studio: str, job: int) -> dict:
+    deadline = time.monotonic() + 180
+    while not (status := httpx.get(f"{studio}/api/jobs/{job}").json())["done"]:
+        assert time.monotonic() < deadline, status
+        time.sleep(0.3)
+    return status
+
+
+def test_the_studio_adds_a_mesh_each_person_possesses_one_and_removing_it_lets_go(tmp_path, walk):
+    proc, studio = start_server(None, nodes=32)
+    try:
+        horse = horse_obj(tmp_path / "horse.obj").read_bytes()
+        r = httpx.post(f"{studio}/api/mesh?name=horse.obj&add=2", content=horse)
+        assert r.status_code == 400 and "add must be 0" in r.json()["error"]
+        status = wait_job(studio, httpx.post(f"{studio}/api/mesh?name=horse.obj&add=1", content=horse).json()["job"])
+        state = httpx.get(f"{studio}/api/state").json()
+        one, two = [m["id"] for m in state["meshes"]]
+        assert status["mesh"] == two and state["mesh"]["id"] == one and state["meshes"][1]["name"] == "horse.obj"
+        assert httpx.get(f"{studio}/api/mesh/{two}").json()["id"] == two
+        for method, path, code, text in (("GET", "/api/mesh/9", 404, "mesh 9 is not loaded"),
+                                          ("DELETE", "/api/mesh/9", 404, "no mesh 9 in the scene (its meshes: 1, 2)"),
+                                          ("POST", "/api/mesh/up?up=z&mesh=x", 400, "mesh must be a mesh id"),
+                                          ("POST", "/api/mesh/up?up=z&mesh=9", 404, "no mesh 9")):
+            r = httpx.request(method, studio + path)
+            assert r.status_code == code and text in r.json()["error"], (path, r.text)
+
+        async def go():
+            async with StudioClient(studio) as page:
+                async def frames(k):
+                    for person, dx in ((1, -1.2), (2, 1.2)):
+                        msg = json.loads(frame_message(k, moved(walk[k], [dx, 0, 0])))
+                        await page.send({**msg, "person": person})
+                for k in range(1, 4):
+                    await frames(k)
+                names = [person_client(page.client, p) for p in (1, 2)]
+                await page.wait(lambda c: sum(u["client"] in names and u["frames"] >= 3 for u in c.state["users"]) == 2)
+                await page.send({"type": "possess", "person": 1, "mesh": 9})
+                await page.wait(lambda c: any(m["type"] == "error" for m in c.messages))
+                error = [m for m in page.messages if m["type"] == "error"][-1]["message"]
+                for person, mesh in ((1, one), (2, two)):
+                    await page.send({"type": "fit", "person": person, "mesh": mesh})
+                    await page.send({"type": "possess", "person": person, "mesh": mesh})
+                await page.wait(lambda c: [m["possessors"] for m in c.state["meshes"]] == [[names[0]], [names[1]]], 60)
+                httpx.post(f"{studio}/api/record/start")
+                seqs = {i: page.mesh_transforms[i][0] for i in (one, two)}
+                for k in range(4, 40, 3):
+                    await frames(k)
+                    await asyncio.sleep(0.05)
+                await page.wait(lambda c: all(c.mesh_transforms[i][0] > seqs[i] + 3 for i in (one, two)), 60)
+                moved_by = {i: float(np.abs(page.mesh_transforms[i][4][:, :3, 3]).max()) for i in (one, two)}
+                take = httpx.post(f"{studio}/api/record/stop", timeout=120).json()
+                r = httpx.delete(f"{studio}/api/mesh/{two}")
+                await page.wait(lambda c: len(c.state["meshes"]) == 1)
+                users = {u["client"]: u for u in page.state["users"]}
+                return error, moved_by, take, r, users, names
+
+        error, moved_by, take, removed, users, names = asyncio.run(go())
+        assert error == f"no mesh 9 in the scene (its meshes: {one}, {two})"
+        assert min(moved_by.values()) > 0.01, moved_by  # each mesh's nodes moved with its own person
+        assert {m["id"] for m in take["meshes"]} == {one, two} and {"glb", f"glb-{two}"} <= set(take["files"])
+        assert httpx.get(studio + take["files"][f"glb-{two}"]).content[:4] == b"glTF"
+        assert removed.status_code == 200
+        assert users[names[0]]["possessing"] and users[names[0]]["mesh"] == one
+        assert not users[names[1]]["possessing"] and users[names[1]]["mesh"] is None
+        r = httpx.delete(f"{studio}/api/mesh/{one}")
+        assert r.status_code == 400 and "only mesh" in r.json()["error"]
+    finally:
+        proc.terminate()
+        proc.wait(10)

@@ -19,7 +19,9 @@ export function statusLine(f: StatusFacts): string {
   const parts = [f.connected ? `connected as ${f.client}` : offline];
   if (f.sceneLost) parts.push('scene lost');
   if (f.state) {
-    parts.push(`${f.state.mesh.name} (${f.state.mesh.nodes} nodes)`);
+    const meshes = f.state.meshes ?? [];
+    parts.push(meshes.length > 1 ? meshes.map((m) => m.name).join(' + ')
+      : `${f.state.mesh.name} (${f.state.mesh.nodes} nodes)`);
     const drivers = f.state.users.filter((u) => u.possessing)
       .map((u) => (u.client === f.client ? 'you' : u.client) + (u.hand ? ` (${u.hand} hand)` : ''));
     parts.push(drivers.length ? `driven by ${drivers.join(' + ')}` : 'nobody possesses the mesh');

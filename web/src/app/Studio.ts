@@ -1,12 +1,15 @@
 // The page's wiring along the data path: this page's capture (CaptureLoop) → its skeleton channel on the
-// socket → the server's node transforms → the mesh skinned on the GPU, with the other users' skeletons,
-// the rigging view, an avatar, a face, physics (Playground), voice, and takes (TakeSession).
+// socket → the server's node transforms → each of the scene's meshes skinned on the GPU with its own, with
+// the other users' skeletons, the rigging view, an avatar, a face, physics (Playground), voice, and takes
+// (TakeSession). The default mesh carries the gizmo, the rigging preview and physics; each other mesh
+// stands where the server places it, and each person in view possesses the mesh chosen in the people list.
+import * as THREE from 'three';
 import { Camera } from '../capture/Camera';
 import { FaceController, installFaceTestHook } from '../face/FaceController';
 import { neckAnchor } from '../face/neckAnchor';
 import { JOINT_COUNT } from '../capture/kinect20';
 import { faceScores, handsFaceFields } from '../net/handsFace';
-import type { SceneState, ServerMessage, SkeletonMessage, TransformBlock, Vec3 } from '../net/protocol';
+import type { MeshState, PlacementState, SceneState, ServerMessage, SkeletonMessage, TransformBlock, Vec3 } from '../net/protocol';
 import { StudioSocket } from '../net/StudioSocket';
 import { AvatarStage } from '../avatar/AvatarStage';
 import { Playground } from '../physics/Playground';
@@ -18,6 +21,7 @@ import { SkeletonFigure } from '../scene/SkeletonFigure';
 import { SkinnedGraphMesh } from '../scene/SkinnedGraphMesh';
 import { Viewport } from '../scene/Viewport';
 import { Panel } from '../ui/Panel';
+import { type MeshChoice, PeopleList } from '../ui/PeopleList';
 import { JointMapControl } from '../rigging/JointMapControl';
 import { PuppetControl, possessMessage, puppetFromQuery } from '../rigging/PuppetControl';
 import { UpAxisControl } from '../rigging/UpAxisControl';
@@ -29,6 +33,18 @@ import { TakeSession } from './TakeSession';
 const OTHER_COLOURS = [0x7fdbff, 0xb10dc9, 0x2ecc40, 0xffdc00];
 const MY_COLOUR = 0xffffff;
 const STALE_MS = 2000; // a remote skeleton not updated for this long disappears
+
+/** A mesh of the scene other than the default one, skinned by its own transform blocks. */
+export interface MeshView {
+  graph: SkinnedGraphMesh;
+  holder: THREE.Group; // carries the mesh's placement matrix
+}
+
+function placeHolder(holder: THREE.Group, p: PlacementState): void {
+  holder.matrixAutoUpdate = false;
+  holder.matrix.fromArray(p.matrix);
+  holder.updateMatrixWorld(true);
+}
 
 export class Studio {
   readonly socket: StudioSocket;
@@ -46,7 +62,10 @@ export class Studio {
   readonly avatars: AvatarStage;
   readonly physics: Playground;
   readonly face: FaceController;
-  graphMesh: SkinnedGraphMesh | null = null;
+  graphMesh: SkinnedGraphMesh | null = null; // the default mesh
+  /** The scene's other meshes, by id. */
+  readonly views = new Map<number, MeshView>();
+  readonly people: PeopleList;
   preview: AttachPreview | null = null;
   state: SceneState | null = null;
   readonly me = new SkeletonFigure(MY_COLOUR);
@@ -58,7 +77,8 @@ export class Studio {
   transformsSeen = 0;
   latency: number[] = [];
   private loadingMesh = 0;
-  private pending: TransformBlock | null = null;
+  private readonly loadingViews = new Set<number>();
+  private readonly pending = new Map<number, TransformBlock>(); // by mesh id: blocks for a mesh still loading
   private previewClock = 0;
 
   constructor(root: HTMLElement) {
@@ -72,7 +92,7 @@ export class Studio {
       possess: () => this.possess(),
       release: () => [{ type: 'release' }, ...this.capture.people.releaseMessages()].forEach((m) => this.socket.send(m)),
       subset: (name) => this.socket.send({ type: 'subset', subset: name }),
-      fit: () => this.socket.send({ type: 'fit' }),
+      fit: () => this.fitMessages().forEach((m) => this.socket.send(m)),
       mode: (mode) => this.placement.setMode(mode),
       record: () => void this.takes.toggle(),
     });
@@ -87,7 +107,8 @@ export class Studio {
     this.avatars = new AvatarStage(this.viewport.scene, this.panel.area('avatar'), say);
     this.placement = new PlacementControls(this.viewport.camera, this.viewport.renderer.domElement,
       this.viewport.controls, this.viewport.scene, (m) => this.socket.send(m));
-    this.voice = new VoiceListener(() => this.socket.client, (r) => this.onVoice(r));
+    this.people = new PeopleList(this.panel.area('body'));
+    this.voice = new VoiceListener(() => this.voiceQuery(), (r) => this.onVoice(r));
     this.takes = new TakeSession(this.viewport.renderer.domElement, {
       say,
       downloads: (links) => this.panel.setDownloads(links),
@@ -105,7 +126,7 @@ export class Studio {
       },
       onError: (m) => { this.panel.setProgress(null); this.panel.setMessage(m, true); },
     }, (file) => this.avatars.tryUpload(file));
-    this.uploader.bind(root, this.panel.fileInput);
+    this.uploader.bind(root, this.panel.fileInput, this.panel.addInput);
     this.jointMap = new JointMapControl(this.panel.area('body'), say);
     // a hand chosen while possessing takes over from the body (or the other hand) at once
     this.puppet = new PuppetControl(this.panel.area('body').querySelector('#body-drive') as HTMLElement,
@@ -159,6 +180,7 @@ export class Studio {
         }
         this.placement.apply(m.placement);
         if (!this.graphMesh || this.graphMesh.data.id !== m.mesh.id) void this.loadMesh(m.mesh.id, m.mesh.url);
+        this.showMeshes(m.meshes ?? []);
         this.panel.setActive('sample', this.sampleUser(), undefined);
         this.panel.setActive('possess', this.possessing);
         this.panel.setActive('record', m.recording);
@@ -180,8 +202,13 @@ export class Studio {
 
   private onTransforms(block: TransformBlock): void {
     this.transformsSeen++;
+    const view = this.views.get(block.meshId);
+    if (view) {
+      view.graph.setNodeMatrices(block.rows, block.seq);
+      return;
+    }
     if (!this.graphMesh || block.meshId !== this.graphMesh.data.id) {
-      this.pending = block; // the mesh is still loading: apply when it arrives
+      this.pending.set(block.meshId, block); // the mesh is still loading: apply when it arrives
       return;
     }
     this.physics.setTransforms(block.rows);
@@ -201,11 +228,85 @@ export class Studio {
     this.graphMesh = new SkinnedGraphMesh(data);
     this.preview = new AttachPreview(data.nodes);
     this.placement.holder.add(this.graphMesh.mesh, this.preview.points);
-    if (this.pending && this.pending.meshId === id) this.graphMesh.setNodeMatrices(this.pending.rows, this.pending.seq);
+    const pending = this.pending.get(id);
+    if (pending) this.graphMesh.setNodeMatrices(pending.rows, pending.seq);
     this.physics.setMesh(data);
-    if (this.pending && this.pending.meshId === id) this.physics.setTransforms(this.pending.rows);
-    this.pending = null;
+    if (pending) this.physics.setTransforms(pending.rows);
+    this.pending.delete(id);
+    if (this.state) this.showMeshes(this.state.meshes ?? []); // a mesh shown beside may be the default now
     this.updateStatus();
+  }
+
+  /** Show the scene's meshes other than the default one where they stand; drop the ones gone. */
+  private showMeshes(meshes: MeshState[]): void {
+    const others = meshes.filter((m) => m.id !== this.graphMesh?.data.id && m.id !== this.state?.mesh.id);
+    for (const [id, view] of this.views) {
+      if (others.some((m) => m.id === id)) continue;
+      view.holder.removeFromParent();
+      view.graph.dispose();
+      this.views.delete(id);
+    }
+    for (const m of others) {
+      const view = this.views.get(m.id);
+      if (view) placeHolder(view.holder, m.placement);
+      else void this.loadView(m);
+    }
+    this.people.show(this.capture.people.ids, this.capture.people.main, this.meshChoices());
+  }
+
+  private async loadView(m: MeshState): Promise<void> {
+    if (this.loadingViews.has(m.id)) return;
+    this.loadingViews.add(m.id);
+    try {
+      const data = await fetchMesh(m.url.replace(/^\//, ''));
+      const now = this.state?.meshes?.find((x) => x.id === m.id);
+      if (!now || now.id === this.state?.mesh.id) return; // removed, or the default now, while downloading
+      const view = { graph: new SkinnedGraphMesh(data), holder: new THREE.Group() };
+      view.holder.add(view.graph.mesh);
+      placeHolder(view.holder, now.placement);
+      this.viewport.scene.add(view.holder);
+      this.views.set(m.id, view);
+      const pending = this.pending.get(m.id);
+      if (pending) view.graph.setNodeMatrices(pending.rows, pending.seq);
+      this.pending.delete(m.id);
+    } finally {
+      this.loadingViews.delete(m.id);
+    }
+  }
+
+  // --- which mesh each person possesses -----------------------------------------------------------
+  meshChoices(): MeshChoice[] {
+    return (this.state?.meshes ?? []).map((m) => ({ id: m.id, name: m.name }));
+  }
+
+  /** A possess message with the mesh chosen for its person (the page's own user: the main person). */
+  private withMesh(m: object): object {
+    const person = (m as { person?: number }).person;
+    const mesh = this.people.meshOf(person ?? this.capture.people.main, this.meshChoices());
+    return mesh === null ? m : { ...m, mesh };
+  }
+
+  /** "Fit to me": each chosen mesh stands where the first person (the page's own user first) who chose it
+   * stands; with every person on the default mesh, that is the page's own user alone, as before. */
+  private fitMessages(): object[] {
+    const people = this.capture.people;
+    const choices = this.meshChoices();
+    const messages: object[] = [this.withMesh({ type: 'fit' })];
+    const fitted = new Set([this.people.meshOf(people.main, choices)]);
+    for (const person of people.others) {
+      const mesh = this.people.meshOf(person, choices);
+      if (fitted.has(mesh)) continue;
+      fitted.add(mesh);
+      messages.push({ type: 'fit', person, ...(mesh === null ? {} : { mesh }) });
+    }
+    return messages;
+  }
+
+  private voiceQuery(): string {
+    const query = new URLSearchParams({ client: this.socket.client });
+    const mesh = this.people.meshOf(this.capture.people.main, this.meshChoices());
+    if (mesh !== null) query.set('mesh', String(mesh));
+    return query.toString();
   }
 
   private onRemoteSkeleton(m: SkeletonMessage): void {
@@ -270,7 +371,9 @@ export class Studio {
       if (now - figure.updatedAt > STALE_MS) { figure.dispose(); this.others.delete(client); }
     }
     const figures = [this.me, ...this.others.values()].filter((f) => f.group.visible);
-    this.graphMesh?.setSkeletonSegments(figures.flatMap((f) => f.segments()));
+    const segments = figures.flatMap((f) => f.segments());
+    this.graphMesh?.setSkeletonSegments(segments);
+    for (const view of this.views.values()) view.graph.setSkeletonSegments(segments);
     if (this.preview && now - this.previewClock > 100) {
       this.previewClock = now;
       this.placement.holder.updateMatrixWorld(true);
@@ -278,14 +381,18 @@ export class Studio {
       figures.forEach((f, i) => f.update(f.positions, result[i]));
       this.me.updatedAt = now;
     }
-    if (this.viewport.frames % 15 === 0) this.updateStatus();
+    if (this.viewport.frames % 15 === 0) {
+      this.updateStatus();
+      this.people.show(this.capture.people.ids, this.capture.people.main, this.meshChoices());
+    }
   }
 
   /** Possess with every person in this camera: the page's own user first, then the others in id order (a
    * joint map gives them its sources in that order), by their bodies or the hand the panel chose. */
   possess(): void {
     const { subset } = this.panel, hand = this.puppet.hand;
-    [possessMessage(subset, hand), ...this.capture.people.possessMessages(subset, hand)].forEach((m) => this.socket.send(m));
+    [possessMessage(subset, hand), ...this.capture.people.possessMessages(subset, hand)]
+      .forEach((m) => this.socket.send(this.withMesh(m))); // each person's chosen mesh
   }
 
   get possessing(): boolean {

@@ -17,6 +17,7 @@ export interface SkeletonMessage {
 export interface UserState {
   client: string;
   possessing: boolean;
+  mesh?: number | null; // the id of the mesh it possesses
   subset: string | string[] | null;
   hand?: 'left' | 'right' | null; // the hand that possesses (a hand puppet), null for the body
   frames: number;
@@ -30,10 +31,28 @@ export interface PlacementState {
   matrix: number[]; // column-major 4x4, as three.js Matrix4.elements
 }
 
+export interface MeshInfo {
+  id: number;
+  name: string;
+  url: string;
+  nodes: number;
+  vertices: number;
+  up?: string;
+  up_reason?: string;
+}
+
+/** One of the scene's meshes: where it stands and who possesses it. */
+export interface MeshState extends MeshInfo {
+  placement: PlacementState;
+  possessors: string[];
+  solve_ms: number | null;
+}
+
 export interface SceneState {
   type: 'state';
-  mesh: { id: number; name: string; url: string; nodes: number; vertices: number; up?: string; up_reason?: string };
-  placement: PlacementState;
+  mesh: MeshInfo; // the default mesh (the first of `meshes`)
+  placement: PlacementState; // the default mesh's
+  meshes?: MeshState[]; // every mesh, the default first (a server of one mesh may leave it out)
   users: UserState[];
   recording: boolean;
   joint_map?: { name: string; sources: number } | null;

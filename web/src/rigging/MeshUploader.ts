@@ -1,5 +1,6 @@
 // Load a mesh by drag and drop or the file picker: upload (progress from the browser), then poll the
-// server's preprocessing job (progress from the server) until the new mesh is ready or fails readably.
+// server's preprocessing job (progress from the server) until the new mesh is ready or fails readably. A
+// mesh replaces the scene's default mesh, or (the "Add mesh" picker) joins the scene beside the others.
 
 export const MESH_EXTENSIONS = ['.obj', '.ply', '.stl', '.glb', '.gltf', '.off'];
 // Rigged avatars (also offered to `intercept` first, which may take any skinned glTF).
@@ -20,8 +21,8 @@ export class MeshUploader {
   constructor(private readonly events: UploadEvents,
     private readonly intercept?: (file: File) => Promise<boolean>) {}
 
-  /** Make `target` accept dropped files and `input` pick them. */
-  bind(target: HTMLElement, input: HTMLInputElement): void {
+  /** Make `target` accept dropped files and `input` pick them; `add` picks meshes added beside the others. */
+  bind(target: HTMLElement, input: HTMLInputElement, add?: HTMLInputElement): void {
     target.addEventListener('dragover', (e) => { e.preventDefault(); target.classList.add('drop'); });
     target.addEventListener('dragleave', () => target.classList.remove('drop'));
     target.addEventListener('drop', (e) => {
@@ -36,9 +37,16 @@ export class MeshUploader {
       if (file) void this.upload(file);
       input.value = '';
     });
+    if (!add) return;
+    add.accept = [...MESH_EXTENSIONS, ...SCAN_EXTENSIONS].join(',');
+    add.addEventListener('change', () => {
+      const file = add.files?.[0];
+      if (file) void this.upload(file, true);
+      add.value = '';
+    });
   }
 
-  async upload(file: File): Promise<void> {
+  async upload(file: File, add = false): Promise<void> {
     if (this.busy) return this.events.onError('a mesh is already being prepared');
     const ext = file.name.slice(file.name.lastIndexOf('.')).toLowerCase();
     if (!MESH_EXTENSIONS.includes(ext) && !SCAN_EXTENSIONS.includes(ext) && !AVATAR_ONLY_EXTENSIONS.includes(ext)
@@ -48,8 +56,8 @@ export class MeshUploader {
     }
     this.busy = true;
     try {
-      if (this.intercept && (await this.intercept(file))) return;
-      const job = await this.send(file);
+      if (!add && this.intercept && (await this.intercept(file))) return;
+      const job = await this.send(file, add);
       await this.follow(job);
     } catch (err) {
       this.events.onError((err as Error).message);
@@ -58,10 +66,10 @@ export class MeshUploader {
     }
   }
 
-  private send(file: File): Promise<number> {
+  private send(file: File, add: boolean): Promise<number> {
     return new Promise((resolve, reject) => {
       const xhr = new XMLHttpRequest();
-      xhr.open('POST', `api/mesh?name=${encodeURIComponent(file.name)}`);
+      xhr.open('POST', `api/mesh?name=${encodeURIComponent(file.name)}${add ? '&add=1' : ''}`);
       xhr.upload.onprogress = (e) => {
         if (e.lengthComputable) this.events.onProgress(`uploading ${file.name}`, 0.3 * (e.loaded / e.total));
       };

@@ -42,6 +42,14 @@ export function installTestHook(studio: Studio): void {
         users: studio.state?.users ?? [],
         meshUp: studio.state?.mesh.up ?? null,
         meshBox: mesh ? meshBox(mesh) : null,
+        // every mesh of the scene, the default first: who possesses it, its box and sampled vertices as shown
+        meshes: (studio.state?.meshes ?? []).map((m) => {
+          const shown = m.id === mesh?.data.id ? mesh : studio.views.get(m.id)?.graph ?? null;
+          const count = shown ? shown.data.positions.length / 3 : 0;
+          return { id: m.id, name: m.name, possessors: m.possessors, loaded: shown !== null,
+            meshBox: shown ? meshBox(shown) : null, transformsSeq: shown?.seq ?? 0,
+            vertices: shown ? shown.skinnedPositions(sampleIndices(64, count)) : [] };
+        }),
         placement: studio.state?.placement ?? null,
         recording: studio.state?.recording ?? false,
         vertices: mesh ? mesh.skinnedPositions(sampleIndices(64, vertexCount)) : [],
@@ -58,7 +66,7 @@ export function installTestHook(studio: Studio): void {
         personUsers: studio.capture.people.ids.map((id) => {
           const user = studio.capture.people.user(studio.socket.client, id);
           const u = studio.state?.users.find((x) => x.client === user);
-          return { id, user, possessing: Boolean(u?.possessing), subset: u?.subset ?? null,
+          return { id, user, possessing: Boolean(u?.possessing), mesh: u?.mesh ?? null, subset: u?.subset ?? null,
             attached: u?.attached.length ?? 0,
             tracked: studio.capture.people.frames.get(id)?.tracked.filter(Boolean).length ?? 0 };
         }),

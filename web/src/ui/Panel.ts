@@ -27,6 +27,7 @@ export type AreaName = 'scene' | 'body' | 'avatar' | 'face' | 'physics' | 'recor
 export class Panel {
   readonly root: HTMLElement;
   readonly fileInput: HTMLInputElement;
+  readonly addInput: HTMLInputElement; // a mesh added beside the others
   private readonly status: HTMLElement;
   private readonly message: HTMLElement;
   private readonly progress: HTMLProgressElement;
@@ -44,7 +45,8 @@ export class Panel {
       <div id="status">connecting…</div>
       <section class="area" id="area-scene"><h2>Scene</h2>
         <div class="row">
-          <label class="file">Load mesh… <input type="file" id="file"></label>
+          <label class="file" title="replaces the default mesh">Load mesh… <input type="file" id="file"></label>
+          <label class="file" title="a mesh of its own for another person, beside the others">Add mesh… <input type="file" id="file-add"></label>
           <button id="sample" title="M">Sample motion</button>
         </div>
         <div class="row">
@@ -84,6 +86,7 @@ export class Panel {
     this.progressLabel = $('progress-label');
     this.downloads = $('downloads');
     this.fileInput = $<HTMLInputElement>('file');
+    this.addInput = $<HTMLInputElement>('file-add');
     this.subsetSelect = $<HTMLSelectElement>('subset');
     for (const name of SUBSETS) this.subsetSelect.add(new Option(name, name));
     this.subsetSelect.addEventListener('change', () => {

@@ -30,7 +30,8 @@ export class VoiceListener {
   level = 0;
   utterances = 0;
 
-  constructor(private readonly client: () => string, private readonly onResult: (r: VoiceResult) => void,
+  /** `who`: the voice request's query string (the client, and the mesh its "possess" takes). */
+  constructor(private readonly who: () => string, private readonly onResult: (r: VoiceResult) => void,
               private readonly threshold = 4.0) {}
 
   get listening(): boolean {
@@ -84,7 +85,7 @@ export class VoiceListener {
 
   async send(pcm16k: Float32Array): Promise<void> {
     this.utterances++;
-    const response = await fetch(`api/voice?client=${encodeURIComponent(this.client())}`, {
+    const response = await fetch(`api/voice?${this.who()}`, {
       method: 'POST', body: encodeWav(pcm16k, 16000), headers: { 'Content-Type': 'audio/wav' },
     });
     const body = (await response.json()) as VoiceResult & { error?: string };
