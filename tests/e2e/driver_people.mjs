@@ -55,6 +55,17 @@ async function startCamera(page, people) {
   log('people tracked', { people: (await state(page)).personUsers });
 }
 
+/** Both people in view, press P, and the state once both possess (or the page shows an error). */
+async function possessBoth(page) {
+  await until(page, () => window.kinetre.state().people.length >= 2, null, 120000);
+  await page.keyboard.press('p');
+  await until(page, () => {
+    const s = window.kinetre.state();
+    return (s.personUsers.length >= 2 && s.personUsers.every((p) => p.possessing)) || document.querySelector('#message').className === 'error';
+  }, null, 90000);
+  return state(page);
+}
+
 async function horse() {
   const browser = await launchWithCamera(resolve(config.video));
   try {
@@ -94,13 +105,7 @@ async function horse() {
     const unfitted = (await state(page)).placement.position;
     await page.keyboard.press('f');
     await until(page, (p) => window.kinetre.state().placement.position[2] !== p[2], unfitted, 30000);
-    await bothInView();
-    await page.keyboard.press('p');
-    await until(page, () => {
-      const s = window.kinetre.state();
-      return (s.personUsers.length >= 2 && s.personUsers.every((p) => p.possessing)) || document.querySelector('#message').className === 'error';
-    }, null, 90000);
-    const s = await state(page);
+    const s = await possessBoth(page);
     result.skeletons = await page.evaluate(() => Object.fromEntries([...window.kinetre.studio.capture.people.frames].map(([id, f]) => [id, f.positions])));
     result.possessed = s.personUsers;
     result.placement = s.placement;
@@ -145,16 +150,20 @@ async function meshes() {
     const [first, second] = result.added.map((m) => m.id);
     const other = (await state(page)).personUsers.find((p) => p.user.includes('p')).id;
     await page.selectOption(`select[data-person="${other}"]`, String(second));
-    const before = (await state(page)).meshes.map((m) => m.meshBox);
-    await page.keyboard.press('f');
-    await until(page, (b) => window.kinetre.state().meshes.every((m, i) => m.meshBox.min[2] !== b[i].min[2]), before, 30000);
-    await bothInView();
-    await page.keyboard.press('p');
-    await until(page, () => {
-      const s = window.kinetre.state();
-      return (s.personUsers.length >= 2 && s.personUsers.every((p) => p.possessing)) || document.querySelector('#message').className === 'error';
-    }, null, 90000);
-    const s = await state(page);
+    // Fit then Possess at once, as a dancer would (MediaPipe's depth of a small figure can jump by a metre
+    // between the two); after a refusal Release, and again, up to four times
+    let s = null;
+    for (let attempt = 0; attempt < 4 && !(s && s.personUsers.every((p) => p.possessing)); attempt++) {
+      if (attempt) {
+        await page.keyboard.press('r');
+        await until(page, () => window.kinetre.state().personUsers.every((p) => !p.possessing), null, 30000);
+      }
+      await page.evaluate(() => window.kinetre.studio.panel.setMessage(''));
+      await page.keyboard.press('f');
+      await page.waitForTimeout(200);
+      s = await possessBoth(page);
+      log('possess', { attempt, message: s.message, possessing: s.personUsers.map((p) => p.possessing) });
+    }
     result.message = s.message;
     result.possessed = s.personUsers;
     result.possessors = s.meshes.map((m) => ({ id: m.id, possessors: m.possessors }));

@@ -38,6 +38,7 @@ def y4m(source: Path, target: Path) -> Path:
 
 def drive(url: str, scenario: str, query: str, timeout: float = 600, **extra) -> dict:
     assert (ROOT / "src" / "kinetre" / "studio" / "static" / "index.html").is_file(), "run `make web` first"
+    ARTIFACTS.mkdir(parents=True, exist_ok=True)  # the driver writes its report there, even on an early failure
     config = {"scenario": scenario, "url": url + "/", "query": query, "artifacts": str(ARTIFACTS), **extra}
     return run_driver("driver_people.mjs", config, timeout)
 
@@ -88,12 +89,12 @@ def test_two_people_each_possess_a_mesh_of_their_own(two_people, tmp_path):
     assert users[main]["mesh"] == first["id"] and users[other]["mesh"] == second["id"]
     assert r["possessors"] == [{"id": first["id"], "possessors": [main]}, {"id": second["id"], "possessors": [other]}]
     assert min(r["spreads"]) > 0.02, r["spreads"]  # both meshes move
-    # each mesh stays with its own person: its centre nearer (across the floor) to that person's hips
+    # each mesh stays with its own person: its centre nearer to that person's hips than to the other's,
+    # across the view (x: the people dance side by side; MediaPipe's depth of small figures jumps by metres)
     for sample in r["samples"]:
-        hips = [np.array(sample["hips"][u])[[0, 2]] for u in (main, other)]
-        for i, centre in enumerate(np.array(sample["centres"])[:, [0, 2]]):
-            own, theirs = (np.linalg.norm(centre - h) for h in (hips[i], hips[1 - i]))
-            assert own < theirs, (i, own, theirs)
+        hips = [sample["hips"][u][0] for u in (main, other)]
+        for i, centre in enumerate(np.array(sample["centres"])[:, 0]):
+            assert abs(centre - hips[i]) < abs(centre - hips[1 - i]), (i, centre, hips)
 
 
 def test_a_z_up_mesh_stands_upright_and_one_click_overrides_it(data_dir, tmp_path):

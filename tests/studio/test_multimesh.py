@@ -135,9 +135,10 @@ def test_removing_a_mesh_releases_its_possessors_and_bad_ids_are_refused(two_mes
     assert user["possessing"] is False and user["mesh"] is None and b.bind is None
 
 
-def wait_job(studio: str, job: int) -> dict:
+def wait_job(studio: str, job: int, headers: dict | None = None) -> dict:
+    """The upload job's status once done."""
     deadline = time.monotonic() + 180
-    while not (status := httpx.get(f"{studio}/api/jobs/{job}").json())["done"]:
+    while not (status := httpx.get(f"{studio}/api/jobs/{job}", headers=headers).json())["done"]:
         assert time.monotonic() < deadline, status
         time.sleep(0.3)
     return status

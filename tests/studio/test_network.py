@@ -18,13 +18,16 @@ import httpx
 import numpy as np
 import pytest
 from studio.conftest import start_server
+from studio.fixtures_horse import horse_obj
 from studio.nats_server import ROOMS, NatsServer
 from studio.studio_ws import StudioClient, frame_message
+from studio.test_multimesh import moved, wait_job
 
 from kinetre.cli import main
 from kinetre.studio.channels import Frame, Hub
 from kinetre.studio.meshes import data_path, prepare_mesh
 from kinetre.studio.natsbus import NatsChannels, NetworkError
+from kinetre.studio.protocol import person_client
 from kinetre.studio.scene import Scene
 from kinetre.studio.takelog import read_take_log
 from kinetre.wire.transforms import unpack_transforms
@@ -343,3 +346,45 @@ def test_gateway_answers_bad_messages_and_forwards_good_frames(network, walk):
     errors, stats = asyncio.run(go())
     assert "not JSON" in errors[0] and "positions" in errors[1] and "unknown message type 'dance'" in errors[2]
     assert stats["malformed"] == 3 and stats["received"] == 1 and stats["last_seq"] == 7
+
+
+def test_a_remote_scene_of_two_meshes_is_mirrored_per_mesh(network, walk, tmp_path):
+    """Through a gateway: a mesh added to the remote scene, each of two people possessing one, both meshes'
+    transforms arriving (each on its own subject), and removing the added mesh releasing its possessor."""
+    url = network["url"]
+    auth = {"Authorization": f"Bearer {A}"}
+    job = httpx.post(f"{url}/api/mesh?name=horse.obj&add=1", content=horse_obj(tmp_path / "h.obj").read_bytes(),
+                     headers=auth).json()["job"]
+    added = wait_job(url, job, auth)["mesh"]
+    state = httpx.get(f"{url}/api/state", headers=auth).json()
+    one = state["mesh"]["id"]
+    assert [m["id"] for m in state["meshes"]] == [one, added]
+    assert httpx.get(f"{url}/api/mesh/{added}", headers=auth).json()["name"] == "horse.obj"  # fetched over NATS
+
+    async def go():
+        async with StudioClient(url, A) as c:
+            names = [person_client(c.client, p) for p in (1, 2)]
+            for k in range(1, 4):
+                for person, dx in ((1, -1.2), (2, 1.2)):
+                    await c.send({**json.loads(frame_message(k, moved(walk[k], [dx, 0, 0]))), "person": person})
+            await c.wait(lambda c: sum(u["client"] in names for u in c.state["users"]) == 2, 30)
+            for person, mesh in ((1, one), (2, added)):
+                await c.send({"type": "fit", "person": person, "mesh": mesh})
+                await c.send({"type": "possess", "person": person, "mesh": mesh})
+            await c.wait(lambda c: [m["possessors"] for m in c.state["meshes"]] == [[names[0]], [names[1]]], 60)
+            seqs = {i: c.mesh_transforms.get(i, (0,))[0] for i in (one, added)}
+            for k in range(4, 30, 3):
+                for person, dx in ((1, -1.2), (2, 1.2)):
+                    await c.send({**json.loads(frame_message(k, moved(walk[k], [dx, 0, 0]))), "person": person})
+                await asyncio.sleep(0.05)
+            await c.wait(lambda c: all(c.mesh_transforms.get(i, (0,))[0] > seqs[i] + 2 for i in (one, added)), 60)
+            unknown = httpx.delete(f"{url}/api/mesh/99", headers=auth)
+            removed = httpx.delete(f"{url}/api/mesh/{added}", headers=auth)
+            await c.wait(lambda c: len(c.state["meshes"]) == 1, 30)
+            users = {u["client"]: u for u in c.state["users"]}
+            return unknown, removed, users, names
+
+    unknown, removed, users, names = asyncio.run(go())
+    assert unknown.status_code == 404 and "no mesh 99" in unknown.json()["error"]
+    assert removed.status_code == 200
+    assert users[names[0]]["mesh"] == one and not users[names[1]]["possessing"]

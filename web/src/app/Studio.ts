@@ -14,6 +14,7 @@ import { StudioSocket } from '../net/StudioSocket';
 import { AvatarStage } from '../avatar/AvatarStage';
 import { Playground } from '../physics/Playground';
 import { AttachPreview } from '../rigging/AttachPreview';
+import { MeshList } from '../rigging/MeshList';
 import { MeshUploader } from '../rigging/MeshUploader';
 import { PlacementControls } from '../rigging/PlacementControls';
 import { fetchMesh } from '../scene/MeshPayload';
@@ -59,6 +60,7 @@ export class Studio {
   readonly jointMap: JointMapControl;
   readonly puppet: PuppetControl;
   readonly upAxis: UpAxisControl;
+  readonly meshList: MeshList;
   readonly avatars: AvatarStage;
   readonly physics: Playground;
   readonly face: FaceController;
@@ -132,6 +134,7 @@ export class Studio {
     this.puppet = new PuppetControl(this.panel.area('body').querySelector('#body-drive') as HTMLElement,
       puppetFromQuery(new URLSearchParams(location.search)), () => { if (this.possessing) this.possess(); });
     this.upAxis = new UpAxisControl(this.panel.area('scene'), say);
+    this.meshList = new MeshList(this.panel.area('scene'), say);
 
     const url = `${location.protocol === 'https:' ? 'wss' : 'ws'}://${location.host}${location.pathname.replace(/[^/]*$/, '')}ws`;
     this.socket = new StudioSocket(url, {
@@ -181,6 +184,7 @@ export class Studio {
         this.placement.apply(m.placement);
         if (!this.graphMesh || this.graphMesh.data.id !== m.mesh.id) void this.loadMesh(m.mesh.id, m.mesh.url);
         this.showMeshes(m.meshes ?? []);
+        this.meshList.show(m.meshes ?? []);
         this.panel.setActive('sample', this.sampleUser(), undefined);
         this.panel.setActive('possess', this.possessing);
         this.panel.setActive('record', m.recording);
