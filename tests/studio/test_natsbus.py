@@ -338,11 +338,12 @@ def run_two_users(walk, monkeypatch, offset_s):
         clock[0] += offset_s
         send("b", walk[40])
         await asyncio.sleep(0.1)
+        solved = list(solver.solved)  # the solves of walk[40]; each mesh's solve loop may take walk[41] next
         clock[0] += 0.5  # the second user stopped: the first's next frame is not held for it
         send("a", walk[41])
         later = scene._gather_deadline(clock[0])
         task.cancel()
-        return solver.solved, round(float(walk[40].positions[0, 0]), 3), later
+        return solved, round(float(walk[40].positions[0, 0]), 3), later
     return asyncio.run(go())
 
 

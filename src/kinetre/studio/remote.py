@@ -90,7 +90,8 @@ class SceneMirror:
         """The scene's meshes, the default first (a scene that names no list has one mesh)."""
         if self.latest is None:
             return []
-        return [m["id"] for m in self.latest.get("meshes") or [self.latest["mesh"]]]
+        meshes = self.latest.get("meshes") or ([self.latest["mesh"]] if self.latest.get("mesh") else [])
+        return [m["id"] for m in meshes]
 
     def state(self) -> dict:
         if self.latest is None:

@@ -283,9 +283,9 @@ class Scene:
             old.recording.close()
         self._release_all(old)
         new = SceneMesh(next(self._ids), mesh, graph, name, old.solver, upright, old.placement)
-        if self._recording_dir is not None:  # the take goes on with the new mesh
-            new.recording = TakeLog(self._recording_dir / f"mesh-{new.id}.log.jsonl")
         self.meshes = {(new.id if i == old.id else i): (new if i == old.id else m) for i, m in self.meshes.items()}
+        if self._recording_dir is not None:  # the take goes on with the new mesh
+            new.recording = TakeLog(self._log_path(new))
         self._retire(old)
         self._start_loop(new)
         self._publish_pose(new, now_ms())
@@ -299,7 +299,7 @@ class Scene:
                         beside(boxes, mesh, self.default.placement))
         self.meshes[new.id] = new
         if self._recording_dir is not None:
-            new.recording = TakeLog(self._recording_dir / f"mesh-{new.id}.log.jsonl")
+            new.recording = TakeLog(self._log_path(new))
         self._start_loop(new)
         self._publish_pose(new, now_ms())
         self.publish_state()
@@ -787,9 +787,14 @@ class Scene:
         folder = Path(tempfile.mkdtemp(prefix="kinetre-recording-")) if folder is None else Path(folder)
         self._recording_dir = folder
         for m in self.meshes.values():
-            m.recording = TakeLog(folder / f"mesh-{m.id}.log.jsonl")
+            m.recording = TakeLog(self._log_path(m))
         self.publish_state()
         return folder
+
+    def _log_path(self, m: SceneMesh) -> Path:
+        """The default mesh's take log is take.log.jsonl (what is left on disk if the scene is killed); the
+        others' take-mesh<id>.log.jsonl beside it."""
+        return self._recording_dir / ("take.log.jsonl" if m is self.default else f"take-mesh{m.id}.log.jsonl")
 
     def _close_recordings(self) -> list[tuple[SceneMesh, TakeLog]]:
         logs = [(m, m.recording) for m in self.meshes.values() if m.recording is not None]
