@@ -15,7 +15,7 @@ import kinetre
 from kinetre.skeleton.models import Skeleton
 from kinetre.studio.channels import Frame, Hub
 from kinetre.studio.meshes import data_path, prepare_mesh
-from kinetre.studio.protocol import person_client
+from kinetre.studio.protocol import SkeletonFrame, person_client
 from kinetre.studio.scene import MeshError, Scene
 from kinetre.studio.subjects import MESH_TRANSFORMS, TRANSFORMS, transforms_subject
 from kinetre.wire.transforms import unpack_transforms
@@ -58,7 +58,8 @@ def test_each_user_drives_only_the_mesh_it_possesses(two_meshes, walk):
 
         def send(user, skeleton):
             k[0] += 1
-            scene.receive(Frame(f"kinetre.skeleton.{user}", k[0], float(k[0]), b"", (k[0], float(k[0]), skeleton)))
+            scene.receive(Frame(f"kinetre.skeleton.{user}", k[0], float(k[0]), b"",
+                                SkeletonFrame(k[0], float(k[0]), skeleton)))
         send("a", a0)
         send("b", b0)
         scene.fit("a", one)
@@ -112,7 +113,7 @@ def test_removing_a_mesh_releases_its_possessors_and_bad_ids_are_refused(two_mes
     async def go():
         scene = Scene(Hub(), spot, spot_graph, "spot.obj")
         second = scene.add_mesh(horse, horse_graph, "horse.obj")
-        scene.receive(Frame("kinetre.skeleton.b", 1, 1.0, b"", (1, 1.0, walk[0])))
+        scene.receive(Frame("kinetre.skeleton.b", 1, 1.0, b"", SkeletonFrame(1, 1.0, walk[0])))
         scene.fit("b", second)
         await scene.possess("b", mesh_id=second)
         with pytest.raises(MeshError, match=r"no mesh 7 in the scene \(its meshes: 1, 2\)") as unknown:
