@@ -19,6 +19,7 @@ from studio.fixtures_horse import horse_obj
 
 from kinetre.mesh.load import load_mesh
 from kinetre.mesh.upright import turned
+from kinetre.studio.meshes import data_path
 from kinetre.studio.placement import standing_mesh
 
 HERE = Path(__file__).resolve().parent
@@ -75,13 +76,13 @@ def test_two_people_each_possess_a_mesh_of_their_own(two_people, tmp_path):
     proc, url = start_server(None, nodes=32, sample_motion=False)
     try:
         r = drive(url, "meshes", "?noshadows&nohands&noface", video=str(two_people),
-                  add=str(horse_obj(tmp_path / "horse.obj")), out=str(ARTIFACTS / "people-meshes.json"))
+                  add=str(data_path("spot.obj")), out=str(ARTIFACTS / "people-meshes.json"))
     finally:
         proc.terminate()
         proc.wait(10)
     assert [s for s in r["steps"] if "error" in s["step"]] == [], r["steps"]
     first, second = r["added"]
-    assert first["name"] == "spot.obj" and second["name"] == "horse.obj"
+    assert first["name"] == second["name"] == "spot.obj" and first["id"] != second["id"]  # a second cow
     assert second["box"]["min"][0] > first["box"]["max"][0]  # added beside the first, not inside it
     users = {p["user"]: p for p in r["possessed"]}
     main = min(users, key=len)  # the page's own user; the other person is <client>p<id>
