@@ -7,9 +7,14 @@ Prints JSON lines {"bench": "tracking_page", "people": N, ...}:
   render_fps          frames the page drew per second meanwhile (goal: >= 8 under SwiftShader)
   latency_p95_ms      camera frame captured -> node transforms of the solve that used it, on the page
   id_switches         ids seen beyond the people in view (goal: 0)
+  seconds_to_find     from the tracker's start until everyone in view is tracked
+
+`--query "?noshadows&notiles"` runs the page without its square search of wide frames (docs/tracking.md),
+for comparison.
 """
 from __future__ import annotations
 
+import argparse
 import json
 import subprocess
 import sys
@@ -35,6 +40,9 @@ def y4m(source: Path, target: Path) -> Path:
 
 
 def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--query", default="?noshadows", help="the studio page's query string")
+    query = parser.parse_args().query
     if not (ROOT / "src" / "kinetre" / "studio" / "static" / "index.html").is_file():
         print(json.dumps({"bench": "tracking_page", "error": "the page is not built: make web"}))
         return
@@ -47,18 +55,19 @@ def main() -> None:
                 if people == 2:  # both possess: the front and back legs, as in the paper's horse
                     httpx.post(url + "/api/jointmap?name=two-people-horse.json",
                                content=(ROOT / "examples" / "maps" / "two-people-horse.json").read_bytes())
-                r = run_driver("driver_people.mjs", {"scenario": "track", "url": url + "/", "query": "?noshadows",
+                r = run_driver("driver_people.mjs", {"scenario": "track", "url": url + "/", "query": query,
                                                      "video": str(video), "people": people, "seconds": SECONDS,
                                                      "artifacts": str(ROOT / "tests" / "e2e" / "artifacts")}, 300)
                 p = r["perf"]
-                print(json.dumps({"bench": "tracking_page", "people": people, "camera": video.name,
+                print(json.dumps({"bench": "tracking_page", "people": people, "camera": video.name, "query": query,
                                   "delegate": p["delegate"], "seconds": SECONDS, "possessing": r["possessing"],
                                   "detections_per_s": round(p["detectionsPerSecond"], 2),
                                   "render_fps": round(p["renderFps"], 1),
                                   "latency_p95_ms": None if p["latencyP95Ms"] is None else round(p["latencyP95Ms"]),
                                   "latency_median_ms": None if p["latencyMedianMs"] is None else round(p["latencyMedianMs"]),
                                   "worker_ms_per_detection": round(p["detectMs"], 1),
-                                  "id_switches": p["idSwitches"]}), flush=True)
+                                  "id_switches": p["idSwitches"],
+                                  "seconds_to_find": round(r["secondsToFind"], 1)}), flush=True)
         finally:
             proc.terminate()
             proc.wait(10)

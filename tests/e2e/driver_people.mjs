@@ -46,13 +46,18 @@ function halfSpreads(samples, middle) {
   return spread;
 }
 
+/** Start the camera and wait until `people` people are tracked; the seconds that took. */
 async function startCamera(page, people) {
   await page.keyboard.press('c');
+  await until(page, () => window.kinetre.state().cameraRunning && window.kinetre.state().delegate !== null, null, 180000);
+  const started = Date.now();
   await until(page, (n) => {
     const s = window.kinetre.state();
     return s.personUsers.length >= n && s.personUsers.every((p) => p.tracked >= 12);
   }, people, 180000);
-  log('people tracked', { people: (await state(page)).personUsers });
+  const seconds = (Date.now() - started) / 1000;
+  log('people tracked', { people: (await state(page)).personUsers, seconds });
+  return seconds;
 }
 
 /** Both people in view, press P, and the state once both possess (or the page shows an error). */
@@ -210,7 +215,7 @@ async function track() {
   const browser = await launchWithCamera(resolve(config.video));
   try {
     const page = await open(browser);
-    await startCamera(page, config.people ?? 1);
+    result.secondsToFind = await startCamera(page, config.people ?? 1);
     await page.keyboard.press('f');
     await page.waitForTimeout(500);
     await page.keyboard.press('p');

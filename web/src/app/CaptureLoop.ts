@@ -43,7 +43,7 @@ export class CaptureLoop {
       models: new URL('models/', document.baseURI).href,
       delegate: (query.get('delegate')?.toUpperCase() as 'CPU' | 'GPU' | null) ?? 'auto',
       numPoses: 4,
-      features: { hands: !query.has('nohands'), face: !query.has('noface') },
+      features: { hands: !query.has('nohands'), face: !query.has('noface'), tiles: !query.has('notiles') },
     });
     this.people = new People((m) => this.host.send(m));
   }

@@ -3,6 +3,7 @@
 // track unseen for less than MEMORY_MS waits for its person to come back, and the distance a returning
 // person may have moved grows with the time they were gone.
 import type { PoseLandmarks } from './detection';
+import { distinct, pixels } from './tiles';
 
 const MEMORY_MS = 10000; // the landmarker may lose one of several people for seconds while it tracks the others
 const GATE = 0.15; // image widths a person may move between two frames
@@ -26,22 +27,11 @@ export function torsoCentre(pose: PoseLandmarks, aspect: number): [number, numbe
   return [x, y];
 }
 
-/** The poses that are distinct people: the landmarker can report one person twice, as two overlapping poses;
- * two poses are one person when the median distance between their landmarks is under a quarter of the
- * body's size (the median ignores the few landmarks that differ). The first of such a pair is kept. */
+/** The poses that are distinct people: the landmarker can report one person twice, as two overlapping poses
+ * (`distinct`: the median landmark distance under a quarter of the body's size). The first of such a pair is
+ * kept. */
 export function distinctPoses(poses: PoseLandmarks[], aspect: number): PoseLandmarks[] {
-  const kept: PoseLandmarks[] = [];
-  for (const pose of poses) {
-    const same = kept.some((other) => {
-      const d = pose.image.map((l, i) => Math.hypot(l.x - other.image[i].x, (l.y - other.image[i].y) / aspect))
-        .sort((a, b) => a - b);
-      const xs = other.image.map((l) => l.x), ys = other.image.map((l) => l.y / aspect);
-      const size = Math.max(Math.max(...xs) - Math.min(...xs), Math.max(...ys) - Math.min(...ys));
-      return d[Math.floor(d.length / 2)] < 0.25 * size;
-    });
-    if (!same) kept.push(pose);
-  }
-  return kept;
+  return distinct(poses.map((p) => pixels(p.image, aspect, 1)), poses.map(() => 0)).map((i) => poses[i]);
 }
 
 /** The injective assignment rows → columns (or -1) of least total cost among the allowed pairs, favouring

@@ -26,6 +26,7 @@ export interface FaceBlendshapes {
 export interface Features {
   hands: boolean;
   face: boolean;
+  tiles?: boolean; // also search a wide frame's overlapping squares for small people (default on)
 }
 
 export type WorkerRequest =
@@ -38,7 +39,8 @@ export interface Detection {
   ms: number; // milliseconds the worker spent on it
   width: number;
   height: number;
-  poses: PoseLandmarks[];
+  poses: PoseLandmarks[]; // distinct people, best first
+  searches: number; // pose searches run on it: the whole frame, plus the squares of a wide one
   hands: HandLandmarks[];
   faces: FaceBlendshapes[];
 }

@@ -2,18 +2,37 @@
 // page hands over as an ImageBitmap. A classic worker, because the Tasks wasm loader uses importScripts.
 // The GPU delegate draws into the worker's own OffscreenCanvas; software WebGL (SwiftShader) is slower
 // than the wasm CPU path, so it counts as no GPU.
-import { FaceLandmarker, FilesetResolver, HandLandmarker, PoseLandmarker } from '@mediapipe/tasks-vision';
-import { MODEL_FILES, type Detection, type Features, type WorkerReply, type WorkerRequest } from './detection';
+//
+// Bodies in a wide frame are also looked for in its overlapping squares (tiles.ts), each square with a
+// PoseLandmarker of its own (VIDEO mode follows what it found in the previous frame of the same stream).
+// To keep detections coming at the rate of the whole frame's, a frame searches the whole frame, every
+// square that last found someone the whole frame missed, and one more square in turn: a small person
+// is found within as many frames as there are squares, then followed every frame. Hands and faces are
+// looked for in the whole frame only.
+import { FaceLandmarker, FilesetResolver, HandLandmarker, PoseLandmarker, type PoseLandmarkerResult } from '@mediapipe/tasks-vision';
+import { MODEL_FILES, type Detection, type Features, type PoseLandmarks, type WorkerReply, type WorkerRequest } from './detection';
+import { distinct, pixels, repeats, squareTiles, toImage, type Tile } from './tiles';
 
 interface Landmarkers {
   pose: PoseLandmarker;
   hand: HandLandmarker;
   face: FaceLandmarker;
+  /** A PoseLandmarker for a square, given its options (made when a wide frame first needs it). */
+  squarePose: () => Promise<PoseLandmarker>;
+  numPoses: number;
+}
+
+/** A square of the frame and what its search found last time it ran. */
+interface Square {
+  pose: PoseLandmarker;
+  holdsSomeone: boolean; // found a person the whole frame missed: searched every frame
 }
 
 let landmarkers: Landmarkers | null = null;
-let features: Features = { hands: true, face: true };
+let features: Features = { hands: true, face: true, tiles: true };
 let lastT = -1;
+const squares: Square[] = [];
+let nextSquare = 0; // the square the next frame searches in turn
 
 const post = (reply: WorkerReply, transfer: Transferable[] = []) => (self as unknown as Worker).postMessage(reply, transfer);
 
@@ -30,18 +49,20 @@ async function create(wasm: string, models: string, delegate: 'CPU' | 'GPU', num
   const fileset = await FilesetResolver.forVisionTasks(wasm);
   const base = (file: string) => ({ modelAssetPath: models + file, delegate });
   const canvas = delegate === 'GPU' ? new OffscreenCanvas(1, 1) : undefined;
+  const squarePose = () => PoseLandmarker.createFromOptions(fileset,
+    { baseOptions: base(MODEL_FILES.pose), runningMode: 'VIDEO', numPoses, canvas });
   const [pose, hand, face] = await Promise.all([
-    PoseLandmarker.createFromOptions(fileset, { baseOptions: base(MODEL_FILES.pose), runningMode: 'VIDEO', numPoses, canvas }),
+    squarePose(),
     HandLandmarker.createFromOptions(fileset, { baseOptions: base(MODEL_FILES.hand), runningMode: 'VIDEO', numHands: 2, canvas }),
     FaceLandmarker.createFromOptions(fileset, {
       baseOptions: base(MODEL_FILES.face), runningMode: 'VIDEO', numFaces: 1, outputFaceBlendshapes: true, canvas,
     }),
   ]);
-  return { pose, hand, face };
+  return { pose, hand, face, squarePose, numPoses };
 }
 
 async function init(request: Extract<WorkerRequest, { type: 'init' }>): Promise<void> {
-  features = request.features;
+  features = { tiles: true, ...request.features };
   const wanted = request.delegate === 'auto' ? (hasHardwareGpu() ? 'GPU' : 'CPU') : request.delegate;
   try {
     landmarkers = await create(request.wasm, request.models, wanted, request.numPoses);
@@ -53,15 +74,49 @@ async function init(request: Extract<WorkerRequest, { type: 'init' }>): Promise<
   }
 }
 
-function detect(bitmap: ImageBitmap, t: number): Detection {
+/** The poses of one search, in whole-image coordinates, and each one's score (mean landmark visibility). */
+function posesOf(result: PoseLandmarkerResult, tile: Tile, width: number, height: number): PoseLandmarks[] {
+  return result.landmarks.map((image, i) => ({ image: toImage(tile, image, width, height), world: result.worldLandmarks[i] }));
+}
+
+const score = (p: PoseLandmarks) => p.image.reduce((sum, l) => sum + (l.visibility ?? 0), 0) / p.image.length;
+
+/** Everyone in the frame: the whole frame's poses, and on a wide frame its squares' (see the top). */
+async function bodies(marks: Landmarkers, bitmap: ImageBitmap, at: number): Promise<{ poses: PoseLandmarks[]; searches: number }> {
+  const { width, height } = bitmap;
+  const whole = posesOf(marks.pose.detectForVideo(bitmap, at), { x: 0, y: 0, width, height }, width, height);
+  const tiles = features.tiles === false ? [] : squareTiles(width, height).slice(1);
+  if (!tiles.length) return { poses: whole, searches: 1 };
+  while (squares.length < tiles.length) squares.push({ pose: await marks.squarePose(), holdsSomeone: false });
+  const turn = nextSquare % tiles.length;
+  nextSquare = turn + 1;
+  const found: PoseLandmarks[] = [...whole];
+  let searches = 1;
+  for (const [k, tile] of tiles.entries()) {
+    const square = squares[k];
+    if (k !== turn && !square.holdsSomeone) continue;
+    const crop = await createImageBitmap(bitmap, tile.x, tile.y, tile.width, tile.height);
+    try {
+      const poses = posesOf(square.pose.detectForVideo(crop, at), tile, width, height);
+      searches++;
+      square.holdsSomeone = poses.some((p) => !whole.some((w) => repeats(pixels(p.image, width, height), pixels(w.image, width, height))));
+      found.push(...poses);
+    } finally {
+      crop.close();
+    }
+  }
+  const kept = distinct(found.map((p) => pixels(p.image, width, height)), found.map(score));
+  return { poses: kept.slice(0, marks.numPoses).map((i) => found[i]), searches };
+}
+
+async function detect(bitmap: ImageBitmap, t: number): Promise<Detection> {
   if (!landmarkers) throw new Error('the landmark worker was sent a frame before it was ready');
   const start = performance.now();
   const at = t > lastT ? t : lastT + 0.001; // VIDEO mode wants strictly increasing timestamps
   lastT = at;
-  const pose = landmarkers.pose.detectForVideo(bitmap, at);
+  const { poses, searches } = await bodies(landmarkers, bitmap, at);
   const detection: Detection = {
-    t, ms: 0, width: bitmap.width, height: bitmap.height,
-    poses: pose.landmarks.map((image, i) => ({ image, world: pose.worldLandmarks[i] })),
+    t, ms: 0, width: bitmap.width, height: bitmap.height, poses, searches,
     hands: [],
     faces: [],
   };
@@ -85,10 +140,10 @@ self.onmessage = async (event: MessageEvent<WorkerRequest>) => {
   const request = event.data;
   try {
     if (request.type === 'init') await init(request);
-    else if (request.type === 'features') features = request.features;
+    else if (request.type === 'features') features = { tiles: true, ...request.features };
     else {
       try {
-        post({ type: 'detection', ...detect(request.bitmap, request.t) });
+        post({ type: 'detection', ...(await detect(request.bitmap, request.t)) });
       } finally {
         request.bitmap.close();
       }
