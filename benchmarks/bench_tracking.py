@@ -16,7 +16,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import subprocess
 import sys
 import tempfile
 from pathlib import Path
@@ -27,16 +26,11 @@ ROOT = Path(__file__).resolve().parents[1]
 VIDEO = ROOT / ".." / "shared" / "data" / "video"
 sys.path.insert(0, str(ROOT / "tests"))
 
+from e2e.fake_camera import y4m  # noqa: E402
 from e2e.node_driver import run_driver  # noqa: E402
 from studio.conftest import start_server  # noqa: E402
 
 SECONDS = 15
-
-
-def y4m(source: Path, target: Path) -> Path:
-    subprocess.run(["ffmpeg", "-v", "error", "-y", "-i", str(source), "-r", "30", "-pix_fmt", "yuv420p",
-                    "-f", "yuv4mpegpipe", str(target)], check=True, timeout=120)
-    return target
 
 
 def main() -> None:
@@ -49,7 +43,7 @@ def main() -> None:
     with tempfile.TemporaryDirectory(prefix="kinetre-bench-") as folder:
         cameras = [(1, (VIDEO / "pose_1_320x240_30fps.y4m").resolve()),
                    (2, y4m((VIDEO / "two_people_pose_1_640x360.mp4").resolve(), Path(folder) / "two.y4m"))]
-        proc, url = start_server(nodes=128, sample_motion=False)
+        proc, url = start_server(nodes=128, sample_motion=False, timeout=300)  # slow to start on a busy machine
         try:
             for people, video in cameras:
                 if people == 2:  # both possess: the front and back legs, as in the paper's horse

@@ -2,7 +2,8 @@
 // benchmarks/bench_tracking.py):
 //   node driver_people.mjs '{"scenario": "horse" | "meshes" | "up" | "track", "url": "...", "video": "...", ...}'
 // horse: two people in the fake camera become two users with stable ids, possessing the mesh's front and
-//        back halves through the joint map `map`;
+//        back halves through the joint map `map`; then each person's input is held still in turn and the
+//        motion of the front and back legs measured;
 // meshes: a second mesh (`add`) joins the scene from the "Add mesh" picker; the people list gives the second
 //        person that mesh; Fit and Possess, then each mesh's box and sampled vertices while they dance;
 // up:    the mesh's box as shown, then after one click on the up-axis button;
@@ -34,19 +35,60 @@ async function screenshot(page, file) {
   await page.screenshot({ path: join(config.artifacts, file) });
 }
 
-/** Largest displacement (metres) of any sampled vertex, behind and in front of the plane z = `middle`. */
-function halfSpreads(samples, middle) {
-  const spread = [0, 0];
-  for (let v = 0; v < samples[0].length; v++) {
-    const side = samples[0][v][2] < middle ? 0 : 1;
-    for (let a = 1; a < samples.length; a++) {
-      spread[side] = Math.max(spread[side], Math.hypot(...samples[a][v].map((x, k) => x - samples[0][v][k])));
-    }
+/** The mesh's lower legs (its lowest 25 %, mesh frame, away from the body that joins them), front (the head's side: its highest vertex) and back. */
+const legVertices = (page) => page.evaluate(() => {
+  const p = window.kinetre.studio.graphMesh.data.positions;
+  const n = p.length / 3;
+  let low = Infinity, high = -Infinity, top = 0;
+  for (let i = 0; i < n; i++) {
+    low = Math.min(low, p[3 * i + 1]);
+    if (p[3 * i + 1] > high) { high = p[3 * i + 1]; top = i; }
   }
-  return spread;
+  const legs = [...Array(n).keys()].filter((i) => p[3 * i + 1] < low + 0.25 * (high - low));
+  const middle = legs.reduce((sum, i) => sum + p[3 * i + 2], 0) / legs.length;
+  const ahead = Math.sign(p[3 * top + 2] - middle);
+  const step = Math.max(1, Math.floor(legs.length / 200));
+  const sampled = legs.filter((_, k) => k % step === 0);
+  return { front: sampled.filter((i) => Math.sign(p[3 * i + 2] - middle) === ahead),
+    back: sampled.filter((i) => Math.sign(p[3 * i + 2] - middle) !== ahead) };
+});
+
+/** How much each group of vertices moves over `count` samples: the mean over its vertices of their RMS
+ * distance (metres) from their mean position. */
+async function motion(page, groups, count = 10) {
+  const samples = [];
+  for (let i = 0; i < count; i++) {
+    samples.push(await page.evaluate((g) => g.map((ids) => window.kinetre.studio.graphMesh.skinnedPositions(ids)), groups));
+    await page.waitForTimeout(300);
+  }
+  return groups.map((ids, g) => {
+    let total = 0;
+    for (let v = 0; v < ids.length; v++) {
+      const mean = [0, 1, 2].map((k) => samples.reduce((sum, s) => sum + s[g][v][k], 0) / count);
+      total += Math.sqrt(samples.reduce((sum, s) => sum + s[g][v].reduce((d, x, k) => d + (x - mean[k]) ** 2, 0), 0) / count);
+    }
+    return total / ids.length;
+  });
 }
 
-/** Start the camera and wait until `people` people are tracked; the seconds that took. */
+/** Hold one person's input still: every frame the page sends for the main person (its own channel) or for
+ * the other people is replaced by the first one sent after this call; 'none' lets them all through. */
+const freeze = (page, who) => page.evaluate((which) => {
+  const host = window.kinetre.studio.capture.host;
+  if (!window.freezer) {
+    const user = host.user, send = host.send;
+    window.freezer = { which: 'none', held: {} };
+    const hold = (key, m) => {
+      const held = (window.freezer.held[key] ??= { positions: m.positions, tracked: m.tracked });
+      return { ...m, positions: held.positions, tracked: held.tracked };
+    };
+    host.user = (frame) => user(frame && window.freezer.which === 'main' ? hold('main', frame) : frame);
+    host.send = (m) => send(m.type === 'skeleton' && m.person !== undefined && window.freezer.which === 'others'
+      ? hold(m.person, m) : m);
+  }
+  window.freezer = { which, held: {} };
+}, who);
+
 async function startCamera(page, people) {
   await page.keyboard.press('c');
   await until(page, () => window.kinetre.state().cameraRunning && window.kinetre.state().delegate !== null, null, 180000);
@@ -119,12 +161,18 @@ async function horse() {
       throw new Error(`possess failed: ${s.message} ${JSON.stringify({ skeletons: result.skeletons, placement: s.placement, users: s.personUsers })}`);
     }
     await screenshot(page, 'people-horse.png');
-    const samples = [];
-    for (let i = 0; i < 12; i++) {
-      samples.push((await state(page)).vertices);
-      await page.waitForTimeout(400);
+    // each half of legs follows its own person: hold one person still and only the other half moves
+    const legs = await legVertices(page);
+    result.legVertices = [legs.front.length, legs.back.length];
+    result.mainPerson = s.mainPerson;
+    result.legMotion = {};
+    for (const who of ['none', 'main', 'others']) {
+      await freeze(page, who);
+      await page.waitForTimeout(1500); // the frames sent before it are solved and shown
+      result.legMotion[who] = await motion(page, [legs.front, legs.back]);
+      log('leg motion', { held: who, frontBack: result.legMotion[who] });
     }
-    result.halfSpreads = halfSpreads(samples, s.placement.position[2]);
+    await freeze(page, 'none');
     result.users = (await state(page)).users;
   } finally {
     await browser.close();
