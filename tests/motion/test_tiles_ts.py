@@ -3,30 +3,20 @@ squares for any image size and overlap, the same landmarks back in the whole ima
 kept when people are found twice."""
 from __future__ import annotations
 
-import json
-import subprocess
 from pathlib import Path
 
 import numpy as np
 import pytest
 
 from kinetre.motion.tiles import Tile, distinct, square_tiles
-from web_bundle import esbuild
+from web_bundle import bundled, run_node
 
 RUNNER = Path(__file__).resolve().parent / "node" / "tiles_ts.mjs"
 
 
 @pytest.fixture(scope="module")
 def bundle(tmp_path_factory):
-    out = tmp_path_factory.mktemp("ts") / "tiles.mjs"
-    esbuild(["capture/tiles.ts"], f"--outfile={out}")
-    return out
-
-
-def run(bundle, fixture: dict) -> dict:
-    out = subprocess.run(["node", str(RUNNER), str(bundle)], input=json.dumps(fixture), capture_output=True,
-                         text=True, timeout=120, check=True)
-    return json.loads(out.stdout)
+    return bundled(tmp_path_factory.mktemp("ts"), "capture/tiles.ts")
 
 
 def people(rng, count: int, landmarks: int) -> tuple[list[np.ndarray], np.ndarray]:
@@ -61,7 +51,7 @@ def test_the_page_searches_the_same_squares_maps_back_and_merges_like_capture(bu
         maps.append({"tile": [tile.x, tile.y, tile.width, tile.height], "marks": rng.uniform(-0.2, 1.2, (33, 3)).tolist(),
                      "width": w, "height": h})
     crowds = [people(rng, int(rng.integers(1, 5)), n) for n in (33, 21, 32, 33, 33, 478)]
-    page = run(bundle, {"tiles": sizes, "toImage": maps,
+    page = run_node(RUNNER, bundle, {"tiles": sizes, "toImage": maps,
                         "distinct": [{"points": [p.tolist() for p in ps], "scores": s.tolist()} for ps, s in crowds]})
 
     assert page["tiles"] == [[[t.x, t.y, t.width, t.height] for t in square_tiles(w, h, o)] for w, h, o in sizes]
