@@ -336,7 +336,22 @@ export class AvatarStage {
       ready: Boolean(this.retargeter), source: this.source, driven: this.driven, editor: Boolean(this.editor),
       recording: this.recording !== null, lastError: this.lastError, vertices,
       fingers: Boolean(this.fingers), expressions: this.expressions?.how ?? null,
+      // each driven finger bone's local rotation (x, y, z, w), and the largest weight of each morph target
+      fingerBones: Object.fromEntries((this.fingers?.joints ?? []).map((j) => [this.payload?.joints[j] ?? j, this.bones[j].quaternion.toArray()])),
+      morphs: this.morphWeights(),
     };
+  }
+
+  private morphWeights(): Record<string, number> {
+    const out: Record<string, number> = {};
+    for (const holders of this.morphMeshes.values()) {
+      for (const h of holders as (MorphHolder & { morphTargetDictionary?: Record<string, number> })[]) {
+        for (const [name, t] of Object.entries(h.morphTargetDictionary ?? {})) {
+          out[name] = Math.max(out[name] ?? 0, h.morphTargetInfluences?.[t] ?? 0);
+        }
+      }
+    }
+    return out;
   }
 }
 

@@ -112,6 +112,11 @@ export class FingerRetargeter {
     return this.aims.size > 0;
   }
 
+  /** The finger bones driven (joint indices). */
+  get joints(): number[] {
+    return [...this.aims.keys()];
+  }
+
   /** Back to the bind pose of the fingers. */
   reset(): void {
     this.last = new Map();
