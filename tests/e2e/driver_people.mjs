@@ -166,11 +166,18 @@ async function horse() {
     result.legVertices = [legs.front.length, legs.back.length];
     result.mainPerson = s.mainPerson;
     result.legMotion = {};
+    const main = () => page.evaluate(() => window.kinetre.studio.capture.people.main);
     for (const who of ['none', 'main', 'others']) {
-      await freeze(page, who);
-      await page.waitForTimeout(1500); // the frames sent before it are solved and shown
-      result.legMotion[who] = await motion(page, [legs.front, legs.back]);
-      log('leg motion', { held: who, frontBack: result.legMotion[who] });
+      // the map gives the front legs to the page's own channel: measure again if another person took it
+      for (let attempt = 0; attempt < 3; attempt++) {
+        await freeze(page, who);
+        await page.waitForTimeout(1500); // the frames sent before it are solved and shown
+        const before = await main();
+        result.legMotion[who] = await motion(page, [legs.front, legs.back]);
+        const after = await main();
+        log('leg motion', { held: who, frontBack: result.legMotion[who], main: [before, after] });
+        if (before === after) break;
+      }
     }
     await freeze(page, 'none');
     result.users = (await state(page)).users;
