@@ -5,10 +5,10 @@
 //
 // Bodies in a wide frame are also looked for in its overlapping squares (tiles.ts), each square with a
 // PoseLandmarker of its own (VIDEO mode follows what it found in the previous frame of the same stream).
-// To keep detections coming at the rate of the whole frame's, a frame searches the whole frame, every
-// square that last found someone the whole frame missed, and one more square in turn: a small person
-// is found within as many frames as there are squares, then followed every frame. Hands and faces are
-// looked for in the whole frame only.
+// To keep detections coming at nearly the rate of the whole frame's, a frame searches the whole frame and
+// every square that last found someone the whole frame missed; every DISCOVER_EVERY-th frame also searches
+// one more square in turn, so a small person is found within DISCOVER_EVERY frames per square, then
+// followed every frame. Hands and faces are looked for in the whole frame only.
 import { FaceLandmarker, FilesetResolver, HandLandmarker, PoseLandmarker, type PoseLandmarkerResult } from '@mediapipe/tasks-vision';
 import { MODEL_FILES, type Detection, type Features, type PoseLandmarks, type WorkerReply, type WorkerRequest } from './detection';
 import { distinct, pixels, repeats, squareTiles, toImage, type Tile } from './tiles';
@@ -32,7 +32,11 @@ let landmarkers: Landmarkers | null = null;
 let features: Features = { hands: true, face: true, tiles: true };
 let lastT = -1;
 const squares: Square[] = [];
-let nextSquare = 0; // the square the next frame searches in turn
+let nextSquare = 0; // the square the next discovering frame searches in turn
+let framesSearched = 0;
+// one discovery search in this many frames: a square costs as much as the whole frame, and searching one
+// every frame halved the detection rate under SwiftShader
+const DISCOVER_EVERY = 4;
 
 const post = (reply: WorkerReply, transfer: Transferable[] = []) => (self as unknown as Worker).postMessage(reply, transfer);
 
@@ -88,8 +92,9 @@ async function bodies(marks: Landmarkers, bitmap: ImageBitmap, at: number): Prom
   const tiles = features.tiles === false ? [] : squareTiles(width, height).slice(1);
   if (!tiles.length) return { poses: whole, searches: 1 };
   while (squares.length < tiles.length) squares.push({ pose: await marks.squarePose(), holdsSomeone: false });
-  const turn = nextSquare % tiles.length;
-  nextSquare = turn + 1;
+  const discover = framesSearched++ % DISCOVER_EVERY === 0;
+  const turn = discover ? nextSquare % tiles.length : -1;
+  if (discover) nextSquare = turn + 1;
   const found: PoseLandmarks[] = [...whole];
   let searches = 1;
   for (const [k, tile] of tiles.entries()) {
