@@ -105,3 +105,18 @@ def test_pieces_of_a_broken_thin_part_are_one_object_and_the_focus_picks_it():
     assert focus_point(np.array([poses[0], poses[0]])) is None  # parallel axes fix no point
     kept, dropped = remove_floaters(arm, 0.02, join=0.012)
     assert len(kept.faces) == 4 and dropped == [2]  # the 2 mm speck goes, both halves of the arm stay
+
+
+def test_a_cluster_of_specks_at_the_focus_is_passed_over_for_the_object():
+    # what a scene shrunk by a wrong depth scale leaves: scraps 2 mm long right where the cameras looked,
+    # each under SPECK_JOINS joins across (so remove_floaters would drop them all), and the object 10 cm off
+    scraps = [_quad(0.01 * i, 0.002, 0.5) for i in range(6)]
+    mesh = _mesh_of(_quad(0.0, 0.3, 0.6), *scraps)
+    focus = np.array([0.02, 0.5, 0.0])
+    assert len(np.unique(group_components(mesh, join=0.012))) == 2
+    choice = select_object(mesh, focus, join=0.012)
+    assert choice.sizes == [12, 2] and choice.kept == 2 and "passed over 1 made only of specks" in choice.reason
+    kept, dropped = remove_floaters(choice.mesh, 0.02, join=0.012)
+    assert len(kept.faces) == 2 and dropped == []
+    only_scraps = select_object(_mesh_of(*scraps), focus, join=0.012)  # nothing else: nothing better to keep
+    assert only_scraps.kept == 12 and remove_floaters(only_scraps.mesh, 0.02, join=0.012)[0].faces.size == 0

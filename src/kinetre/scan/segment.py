@@ -133,12 +133,26 @@ def group_components(mesh: ScanMesh, join: float) -> np.ndarray:
     return group[labels]
 
 
+def specks(mesh: ScanMesh, join: float) -> np.ndarray:
+    """(F,) bool per face: its component (`face_components`) is under SPECK_JOINS `join` across (the
+    diagonal of its bounding box)."""
+    labels = face_components(mesh.faces, len(mesh.vertices))
+    if len(labels) == 0:
+        return np.zeros(0, bool)
+    corners, owner = mesh.vertices[mesh.faces.reshape(-1)], np.repeat(labels, 3)
+    low = np.full((labels.max() + 1, 3), np.inf)
+    high = np.full((labels.max() + 1, 3), -np.inf)
+    np.minimum.at(low, owner, corners)
+    np.maximum.at(high, owner, corners)
+    return np.linalg.norm(high - low, axis=1)[labels] < SPECK_JOINS * join
+
+
 def remove_floaters(mesh: ScanMesh, min_fraction: float, join: float) -> tuple[ScanMesh, list[int]]:
     """Drop floaters; returns (kept mesh, face counts of what was dropped, largest first).
 
     Floaters are groups (`group_components`) with fewer faces than min_fraction of the largest group, and
-    specks: components less than SPECK_JOINS `join` across (a few voxels of noise beside a surface, which the
-    grouping would otherwise keep with it). A broken-off piece of a thin part is larger and stays with its object.
+    specks (`specks`: a few voxels of noise beside a surface, which the grouping would otherwise keep with it).
+    A broken-off piece of a thin part is larger and stays with its object.
     """
     if len(mesh.faces) == 0:
         return mesh, []
@@ -146,13 +160,7 @@ def remove_floaters(mesh: ScanMesh, min_fraction: float, join: float) -> tuple[S
     counts = np.bincount(groups)
     small = counts[groups] < max(1.0, min_fraction * counts.max())
     labels = face_components(mesh.faces, len(mesh.vertices))
-    corners, owner = mesh.vertices[mesh.faces.reshape(-1)], np.repeat(labels, 3)
-    low = np.full((labels.max() + 1, 3), np.inf)
-    high = np.full((labels.max() + 1, 3), -np.inf)
-    np.minimum.at(low, owner, corners)
-    np.maximum.at(high, owner, corners)
-    speck = np.linalg.norm(high - low, axis=1)[labels] < SPECK_JOINS * join
-    drop = small | speck
+    drop = small | specks(mesh, join)
     dropped = np.bincount(labels[drop], minlength=labels.max() + 1)
     return keep_faces(mesh, ~drop), sorted(dropped[dropped > 0].tolist(), reverse=True)
 
@@ -189,17 +197,23 @@ class Choice:
 
 def select_object(mesh: ScanMesh, focus: np.ndarray | None, join: float, min_fraction: float = 0.05) -> Choice:
     """The group (`group_components`) the scan is about: among groups with at least min_fraction of the
-    largest one's faces, the one nearest `focus` (see `focus_point`); the largest when there is no focus."""
+    largest one's faces, the one nearest `focus` (see `focus_point`); the largest when there is no focus.
+
+    Groups made only of specks (`specks`) are passed over while any other is left: `remove_floaters` would
+    drop them whole, and a shrunken scene (a wrong depth scale) leaves such scraps right beside the focus.
+    """
     groups = group_components(mesh, join)
     counts = np.bincount(groups)
     order = np.argsort(-counts)
     sizes = counts[order][counts[order] > 0].tolist()
+    solid = np.bincount(groups[~specks(mesh, join)], minlength=len(counts)) > 0
+    viable = [int(g) for g in order if counts[g] > 0 and solid[g]] or [int(order[0])]
+    candidates = [g for g in viable if counts[g] >= min_fraction * counts[viable[0]]]
     if focus is None or len(sizes) == 1:
-        best = int(order[0])
-        reason = "the largest" if len(sizes) > 1 else "the only one"
+        best = viable[0]
+        reason = "the only one" if len(sizes) == 1 else "the largest"
     else:
         from scipy.spatial import cKDTree
-        candidates = [int(g) for g in order if counts[g] >= min_fraction * counts.max()]
         distance = {}
         for g in candidates:
             points = mesh.vertices[np.unique(mesh.faces[groups == g])]
@@ -208,6 +222,9 @@ def select_object(mesh: ScanMesh, focus: np.ndarray | None, join: float, min_fra
         reason = (f"nearest to the point the cameras looked at ({distance[best] * 100:.0f} cm away; "
                   f"the next is {sorted(distance.values())[1] * 100:.0f} cm away)" if len(candidates) > 1 else
                   f"the only one with at least {min_fraction:.0%} of the largest one's faces")
+    passed = len(sizes) - len(viable) if solid.any() else 0
+    if passed:
+        reason += f"; passed over {passed} made only of specks (pieces under {SPECK_JOINS * join * 100:.1f} cm)"
     return Choice(keep_faces(mesh, groups == best), sizes, int(counts[best]), reason)
 
 
