@@ -80,8 +80,11 @@ def test_a_scene_that_vanishes_at_the_wrong_scale_is_a_clear_error(tmp_path):
     orbit = synthetic.render_orbit("lamp", 16, 320, 240, seed=4)
     folder = as_tum(orbit.write(tmp_path / "frames"))
     from kinetre.scan.pipeline import scan
-    with pytest.raises(BadScanError, match=r"at depth scale 5000 .*--depth-scale 1000 reads the median at 1\.\d\d m"):
-        scan(folder, tmp_path / "x.ply", segment="plane", progress=False)
+    # read at 5000 the 33 x 56 x 20 cm lamp is 7 x 11 x 4 cm (13.6 cm corner to corner); at 2 cm voxels a
+    # speck is anything under 4 joins of 2 voxels, 16 cm: every piece of it goes, and that must be said
+    with pytest.raises(BadScanError, match=r"nothing was left .*at depth scale 5000 .*--depth-scale 1000 reads "
+                                           r"the median at 1\.\d\d m"):
+        scan(folder, tmp_path / "x.ply", segment="plane", voxel=0.02, progress=False)
 
 
 def test_the_warning_compares_the_object_with_the_view_at_the_median_depth():
