@@ -17,6 +17,10 @@ const result = { scenario: config.scenario, steps: [] };
 const t0 = Date.now();
 const log = (step, extra = {}) => result.steps.push({ step, s: (Date.now() - t0) / 1000, ...extra });
 
+// both people tracked, and the second one a studio user of its own
+const bothInView = (page) => until(page, () => window.kinetre.state().people.length >= 2
+  && window.kinetre.state().personUsers.some((p) => p.user.includes('p')), null, 120000);
+
 async function open(browser) {
   const page = await browser.newPage({ viewport: { width: 720, height: 540 } });
   page.setDefaultTimeout(120000);
@@ -147,8 +151,7 @@ async function horse() {
     result.idsSeen = [...seen].sort((a, b) => a - b);
     result.trace = await page.evaluate(() => window.peopleTrace);
     result.views = views;
-    const bothInView = () => until(page, () => window.kinetre.state().people.length >= 2, null, 120000);
-    await bothInView();
+    await bothInView(page);
     const unfitted = (await state(page)).placement.position;
     await page.keyboard.press('f');
     await until(page, (p) => window.kinetre.state().placement.position[2] !== p[2], unfitted, 30000);
@@ -205,8 +208,7 @@ async function meshes() {
     await until(page, () => window.kinetre.state().meshes.filter((m) => m.loaded).length === 2, null, 180000);
     result.added = (await state(page)).meshes.map((m) => ({ id: m.id, name: m.name, box: m.meshBox }));
     await startCamera(page, 2);
-    const bothInView = () => until(page, () => window.kinetre.state().people.length >= 2, null, 120000);
-    await bothInView();
+    await bothInView(page);
     const [first, second] = result.added.map((m) => m.id);
     const other = (await state(page)).personUsers.find((p) => p.user.includes('p')).id;
     await page.selectOption(`select[data-person="${other}"]`, String(second));

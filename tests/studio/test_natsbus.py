@@ -16,6 +16,7 @@ from kinetre.studio.channels import Frame, Hub
 from kinetre.studio.meshes import data_path, prepare_mesh
 from kinetre.studio.natsbus import NatsChannels
 from kinetre.studio.natspatch import DirectDelivery, ReadNow, Resumed
+from kinetre.studio.protocol import SkeletonFrame
 from kinetre.studio.remote import SceneMirror
 from kinetre.studio.scene import Scene
 from kinetre.studio.subjects import STATE
@@ -315,8 +316,8 @@ def run_two_users(walk, monkeypatch, offset_s):
 
         def send(user, skeleton):
             seq[0] += 1
-            scene.receive(Frame(f"kinetre.skeleton.{user}", seq[0], float(seq[0]), b"", (seq[0], float(seq[0]),
-                                                                                           skeleton)))
+            scene.receive(Frame(f"kinetre.skeleton.{user}", seq[0], float(seq[0]), b"",
+                                SkeletonFrame(seq[0], float(seq[0]), skeleton)))
         for user in ("a", "b"):
             send(user, walk[0])
             await scene.possess(user)

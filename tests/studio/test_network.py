@@ -27,7 +27,7 @@ from kinetre.cli import main
 from kinetre.studio.channels import Frame, Hub
 from kinetre.studio.meshes import data_path, prepare_mesh
 from kinetre.studio.natsbus import NatsChannels, NetworkError
-from kinetre.studio.protocol import person_client
+from kinetre.studio.protocol import SkeletonFrame, person_client
 from kinetre.studio.scene import Scene
 from kinetre.studio.takelog import read_take_log
 from kinetre.wire.transforms import unpack_transforms
@@ -122,11 +122,11 @@ def test_scene_process_solves_what_a_local_scene_solves(network, walk):
         mesh_, graph = prepare_mesh(str(data_path("spot.obj")), NODES)
         hub = Hub()
         scene = Scene(hub, mesh_, graph, "spot.obj")
-        scene.receive(Frame("kinetre.skeleton.u", 1, 1.0, b"", (1, 1.0, walk[0])))
+        scene.receive(Frame("kinetre.skeleton.u", 1, 1.0, b"", SkeletonFrame(1, 1.0, walk[0])))
         scene.fit("u")
         await scene.possess("u")
         await scene.solve_once()
-        scene.receive(Frame("kinetre.skeleton.u", 2, 2.0, b"", (2, 2.0, walk[10])))
+        scene.receive(Frame("kinetre.skeleton.u", 2, 2.0, b"", SkeletonFrame(2, 2.0, walk[10])))
         await scene.solve_once()
         return scene.pose.node_matrices(graph.nodes), graph
 
@@ -295,7 +295,7 @@ def test_nats_restart_and_scene_loss(network, walk):
     assert resume_s < 2.0
     logs = list(tmp.glob("kinetre-recording-*/take.log.jsonl"))
     assert len(logs) == 1
-    on_disk = {seq for seq, _, _, _ in read_take_log(logs[0])}
+    on_disk = {frame[0] for frame in read_take_log(logs[0])}
     assert len(recorded_seen) >= 5 and recorded_seen <= on_disk  # every frame a viewer saw was recorded
 
 
