@@ -51,7 +51,11 @@ async function watchVertices(page, seconds, every = 400) {
 async function startCamera(page, name) {
   await page.keyboard.press('c');
   await until(page, () => window.kinetre.state().trackedJoints >= 12, null, 120000);
-  log(`${name}: pose detected`, { tracked: (await state(page)).trackedJoints });
+  const tracked = (await state(page)).trackedJoints;
+  // and the server has this page's frames, so Fit and Possess find a skeleton there
+  await until(page, () => window.kinetre.state().users.some((u) => u.client === window.kinetre.state().client && u.frames > 0),
+    null, 60000);
+  log(`${name}: pose detected`, { tracked });
 }
 
 async function possess(page, name, subset = null) {

@@ -18,13 +18,19 @@ await report(result, async () => {
   result.chosen = await page.locator('#puppet').inputValue();
   await page.keyboard.press('c');
   // the body tracked and the hands sent with its frames (the worker finds hands in a frame or two)
-  await until(page, () => window.kinetre.state().trackedJoints >= 12, null, 180000);
-  await page.waitForTimeout(3000);
-  await page.keyboard.press('p');
-  await until(page, () => {
-    const s = window.kinetre.state();
-    return s.possessing || document.querySelector('#message').className === 'error';
-  }, null, 120000);
+  await until(page, () => window.kinetre.state().trackedJoints >= 12 && window.kinetre.state().handsSeen[1], null, 180000);
+  await until(page, () => window.kinetre.state().users.some((u) => u.client === window.kinetre.state().client && u.frames > 0),
+    null, 60000);
+  // a hand the worker missed in the newest frame is refused: show it again, as a user would, up to 4 times
+  for (let attempt = 0; attempt < 4 && !(await state(page)).possessing; attempt++) {
+    if (attempt) await page.waitForTimeout(1500);
+    await page.evaluate(() => { document.querySelector('#message').className = ''; });
+    await page.keyboard.press('p');
+    await until(page, () => {
+      const s = window.kinetre.state();
+      return s.possessing || document.querySelector('#message').className === 'error';
+    }, null, 120000);
+  }
   const s = await state(page);
   result.message = s.message;
   result.me = s.users.find((u) => u.client === s.client) ?? null;

@@ -45,6 +45,16 @@ log = logging.getLogger("kinetre.studio")
 GATHER_S = 0.010  # longest wait for another possessing user's frame that is due (see Scene._gather)
 GATHER_SLACK_S = 0.005  # how late a user's frame may be (arrival jitter) and still be waited for
 LATE_S = 0.015  # a frame this long in the scene yields after its solve's next step (see Scene.solve_once)
+# how long a possession waits for the user's first tracked frame: a page sends "possess" right after its
+# first detection, and on a busy host that frame may still be on its way through the hub
+FIRST_FRAME_S = 3.0
+
+
+async def arrival(ready: Callable[[], bool], wait: float = FIRST_FRAME_S) -> None:
+    """Return once `ready()` holds or `wait` seconds have passed (the caller then checks it again)."""
+    deadline = time.monotonic() + wait
+    while not ready() and time.monotonic() < deadline:
+        await asyncio.sleep(0.05)
 
 
 @dataclass
@@ -424,8 +434,11 @@ class Scene:
         m = self.scene_mesh(mesh_id)
         user = self.user(client)
         if hand is not None:
+            check_hand(hand)
+            await arrival(lambda: user.hands is not None and np.isfinite(user.hands[SIDES.index(hand)]).all())
             await self._possess_by_hand(user, subset, hand, m)
             return
+        await arrival(lambda: user.latest is not None and user.latest.tracked.any())
         if user.latest is None or not user.latest.tracked.any():
             raise AttachError("no tracked skeleton from this client yet: nothing to possess with")
         source = None

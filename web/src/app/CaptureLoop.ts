@@ -34,6 +34,7 @@ export class CaptureLoop {
   /** The people in this camera's view: the main one drives this page's channel, the others their own. */
   readonly people: People;
   trackedJoints = 0;
+  handsSeen: [boolean, boolean] = [false, false]; // [left, right] in the newest frame sent
   trackingLost = false;
 
   constructor(readonly camera: Camera, private readonly host: CaptureHost) {
@@ -83,10 +84,12 @@ export class CaptureLoop {
       this.trackedJoints = main.frame.tracked.filter(Boolean).length;
       this.trackingLost = false;
       const hands = personHands(main.pose, main.frame, d.hands, d.width / d.height);
+      this.handsSeen = [hands[0] !== null, hands[1] !== null];
       this.host.user({ ...main.frame, t: performance.timeOrigin + d.t, hands, face: d.faces[0]?.scores ?? null });
     } else {
       this.trackingLost = true;
       this.trackedJoints = 0;
+      this.handsSeen = [false, false];
       this.host.user(null);
     }
   }

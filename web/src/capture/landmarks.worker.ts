@@ -37,6 +37,10 @@ let framesSearched = 0;
 // one discovery search in this many frames: a square costs as much as the whole frame, and searching one
 // every frame halved the detection rate under SwiftShader
 const DISCOVER_EVERY = 4;
+// the page searches squares from a 16:9 frame on, where the letterbox shrinks a person to 56 %; a 4:3
+// webcam's letterbox keeps 75 %, and its two squares, each most of the frame, mostly find the same person
+// again at a third of the detection rate
+const WIDE = 1.7;
 
 const post = (reply: WorkerReply, transfer: Transferable[] = []) => (self as unknown as Worker).postMessage(reply, transfer);
 
@@ -89,7 +93,8 @@ const score = (p: PoseLandmarks) => p.image.reduce((sum, l) => sum + (l.visibili
 async function bodies(marks: Landmarkers, bitmap: ImageBitmap, at: number): Promise<{ poses: PoseLandmarks[]; searches: number }> {
   const { width, height } = bitmap;
   const whole = posesOf(marks.pose.detectForVideo(bitmap, at), { x: 0, y: 0, width, height }, width, height);
-  const tiles = features.tiles === false ? [] : squareTiles(width, height).slice(1);
+  const wide = Math.max(width, height) >= WIDE * Math.min(width, height);
+  const tiles = features.tiles === false || !wide ? [] : squareTiles(width, height).slice(1);
   if (!tiles.length) return { poses: whole, searches: 1 };
   while (squares.length < tiles.length) squares.push({ pose: await marks.squarePose(), holdsSomeone: false });
   const discover = framesSearched++ % DISCOVER_EVERY === 0;

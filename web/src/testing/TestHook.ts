@@ -34,6 +34,7 @@ export function installTestHook(studio: Studio): void {
         transformsSeen: studio.transformsSeen,
         cameraRunning: studio.camera.running,
         trackedJoints: studio.capture.trackedJoints,
+        handsSeen: studio.capture.handsSeen,
         trackingLost: studio.capture.trackingLost,
         framesSent: studio.socket.sentFrames,
         possessing: studio.possessing,
