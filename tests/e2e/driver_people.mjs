@@ -17,9 +17,11 @@ const result = { scenario: config.scenario, steps: [] };
 const t0 = Date.now();
 const log = (step, extra = {}) => result.steps.push({ step, s: (Date.now() - t0) / 1000, ...extra });
 
-// both people tracked, and the second one a studio user of its own
-const bothInView = (page) => until(page, () => window.kinetre.state().people.length >= 2
-  && window.kinetre.state().personUsers.some((p) => p.user.includes('p')), null, 120000);
+// both people tracked, and the second one a studio user of its own: that person's id
+const bothInView = (page) => until(page, () => {
+  const s = window.kinetre.state();
+  return s.people.length >= 2 && (s.personUsers.find((p) => p.user.includes('p'))?.id ?? false);
+}, null, 120000);
 
 async function open(browser) {
   const page = await browser.newPage({ viewport: { width: 720, height: 540 } });
@@ -208,9 +210,8 @@ async function meshes() {
     await until(page, () => window.kinetre.state().meshes.filter((m) => m.loaded).length === 2, null, 180000);
     result.added = (await state(page)).meshes.map((m) => ({ id: m.id, name: m.name, box: m.meshBox }));
     await startCamera(page, 2);
-    await bothInView(page);
+    const other = await bothInView(page);
     const [first, second] = result.added.map((m) => m.id);
-    const other = (await state(page)).personUsers.find((p) => p.user.includes('p')).id;
     await page.selectOption(`select[data-person="${other}"]`, String(second));
     // Fit then Possess at once, as a dancer would (MediaPipe's depth of a small figure can jump by a metre
     // between the two); after a refusal Release, and again, up to four times
