@@ -1,26 +1,13 @@
 """VMC out: a real UDP receiver on loopback decodes every bundle `kinetre avatar --vmc` streams."""
 from __future__ import annotations
 
-import socket
-import threading
-
 import numpy as np
-from pythonosc.osc_packet import OscPacket
 from scipy.spatial.transform import Rotation
 
 from kinetre.avatar.retarget import retarget
 from kinetre.cli import main
 from kinetre.vmc.send import BONES, MIRROR, vmc_frames
-
-
-def receive(sock, out, stop):
-    sock.settimeout(0.2)
-    while not stop.is_set():
-        try:
-            data, _ = sock.recvfrom(65536)
-        except socket.timeout:
-            continue
-        out.append([(m.message.address, m.message.params) for m in OscPacket(data).messages])
+from studio.vmc_receiver import vmc_receiver
 
 
 def world_rotations(frame):
@@ -34,17 +21,9 @@ def world_rotations(frame):
 
 
 def test_the_cli_streams_every_frame_in_order_with_unity_bones(tmp_path, capsys, data_dir):
-    sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
-    sock.bind(("127.0.0.1", 0))
-    port = sock.getsockname()[1]
-    bundles, stop = [], threading.Event()
-    thread = threading.Thread(target=receive, args=(sock, bundles, stop), daemon=True)
-    thread.start()
-    code = main(["avatar", str(data_dir / "avatars" / "RiggedFigure.glb"), "--motion",
-                 str(data_dir / "bvh" / "cmu_12_01_walk.bvh"), "--max-frames", "12", "--vmc", f"127.0.0.1:{port}"])
-    stop.set()
-    thread.join()
-    sock.close()
+    with vmc_receiver() as (port, bundles):
+        code = main(["avatar", str(data_dir / "avatars" / "RiggedFigure.glb"), "--motion",
+                     str(data_dir / "bvh" / "cmu_12_01_walk.bvh"), "--max-frames", "12", "--vmc", f"127.0.0.1:{port}"])
     assert code == 0 and "sent 12 VMC frames" in capsys.readouterr().out
     assert len(bundles) == 12
     times = []
@@ -103,16 +82,9 @@ def test_a_takes_face_streams_as_vrm_blendshape_clips(tmp_path, capsys, data_dir
                 blendshapes=faces[:, None], blendshape_names=names)
     path = tmp_path / "face.kinetre.jsonl"
     write_stream(path, take)
-    sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
-    sock.bind(("127.0.0.1", 0))
-    bundles, stop = [], threading.Event()
-    thread = threading.Thread(target=receive, args=(sock, bundles, stop), daemon=True)
-    thread.start()
-    code = main(["avatar", str(data_dir / "avatars" / "RiggedFigure.glb"), "--motion", str(path),
-                 "--vmc", f"127.0.0.1:{sock.getsockname()[1]}"])
-    stop.set()
-    thread.join()
-    sock.close()
+    with vmc_receiver() as (port, bundles):
+        code = main(["avatar", str(data_dir / "avatars" / "RiggedFigure.glb"), "--motion", str(path),
+                     "--vmc", f"127.0.0.1:{port}"])
     assert code == 0 and "8 blendshapes" in capsys.readouterr().out
     assert len(bundles) == t
     for k, messages in enumerate(bundles):
