@@ -95,6 +95,18 @@ class User:
         self._parse_raw()
         return self.parsed_hands
 
+    def seen_hand(self, side: str) -> np.ndarray | None:
+        """(21, 3) hand `side` ("left", "right") of the newest frame, or None when it is not seen there."""
+        marks = self.hands
+        if marks is None or not np.isfinite(marks[SIDES.index(side)]).all():
+            return None
+        return marks[SIDES.index(side)]
+
+    @property
+    def tracking(self) -> bool:
+        """Whether the newest frame tracks any joint."""
+        return self.latest is not None and bool(self.latest.tracked.any())
+
     @property
     def blendshapes(self) -> np.ndarray | None:
         """(52,) the face blendshape weights of the newest frame (`skeleton.mediapipe.BLENDSHAPES` order), or
@@ -435,11 +447,11 @@ class Scene:
         user = self.user(client)
         if hand is not None:
             check_hand(hand)
-            await arrival(lambda: user.hands is not None and np.isfinite(user.hands[SIDES.index(hand)]).all())
+            await arrival(lambda: user.seen_hand(hand) is not None)
             await self._possess_by_hand(user, subset, hand, m)
             return
-        await arrival(lambda: user.latest is not None and user.latest.tracked.any())
-        if user.latest is None or not user.latest.tracked.any():
+        await arrival(lambda: user.tracking)
+        if not user.tracking:
             raise AttachError("no tracked skeleton from this client yet: nothing to possess with")
         source = None
         if subset is None and self.joint_map is not None:
@@ -453,13 +465,12 @@ class Scene:
         await self._bind(user, m, subset, None, None, stand)
 
     async def _possess_by_hand(self, user: User, subset, hand: str, m: SceneMesh) -> None:
-        check_hand(hand)
-        marks = user.hands
-        if marks is None or not np.isfinite(marks[SIDES.index(hand)]).all():
+        marks = user.seen_hand(hand)
+        if marks is None:
             raise AttachError(f"no {hand} hand tracked from this client yet: show it to the camera")
         if subset is not None:
             subset_mask(HAND21, subset)  # BadSkeletonError on a name that is no part of a hand
-        frame = Skeleton.from_positions(HAND21, marks[SIDES.index(hand)])
+        frame = Skeleton.from_positions(HAND21, marks)
         # the shape fit searches for a second or so: off the event loop
         fitted = await asyncio.to_thread(fit_puppet, frame, m.mesh, m.graph.nodes)
         await self._bind(user, m, subset, hand, fitted, None)
