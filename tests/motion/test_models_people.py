@@ -4,7 +4,7 @@ import pytest
 
 from kinetre.errors import BadModelError
 from kinetre.motion.models import MODELS, check_digest, model_path
-from kinetre.motion.people import Tracks, assign_ids
+from kinetre.motion.people import Tracks, assign_ids, main_person
 from kinetre.motion.stream import read_stream, write_stream
 from kinetre.motion.take import PersonFrame, crowd_take
 from kinetre.skeleton.models import KINECT20, Skeleton
@@ -54,6 +54,39 @@ def test_ids_follow_people_who_cross_and_come_back_within_memory():
     assert ids.tolist() == [0, 2]
     ids, state = assign_ids(state, [[118, 50], [290, 50]], [40, 40], 5.55)  # 1 forgotten after 3 s
     assert ids.tolist() == [0, 3] and [k.id for k in state.tracks] == [0, 2, 3]
+
+
+def follow(frames, middle=(320.0, 180.0)):
+    """Ids and the main person after each frame of (t, centres) with 40-pixel bodies."""
+    state, main, out = Tracks(), None, []
+    for t, centres in frames:
+        centres = np.array(centres, dtype=np.float64).reshape(-1, 2)
+        ids, state = assign_ids(state, centres, np.full(len(centres), 40.0), t)
+        main = main_person(main, state, ids, centres, middle)
+        out.append((ids.tolist(), main))
+    return out
+
+
+@pytest.mark.parametrize("swap", [False, True])
+def test_the_main_person_is_nearest_the_middle_at_first_sight_and_kept_by_id_whatever_the_order(swap):
+    a, b = [300, 200], [500, 190]  # a nearer the middle (320, 180)
+    both = [b, a] if swap else [a, b]
+    out = follow([(0.0, both), (0.1, [b]), (0.2, [b]), (0.3, both[::-1]), (1.0, both)])
+    ida = out[0][0][1 if swap else 0]
+    assert [main for _, main in out] == [ida] * 5  # b, seen with a from the start, never takes over
+    # a forgotten (3 s memory): b, in view, is followed
+    out = follow([(0.0, both)] + [(0.5 * k, [b]) for k in range(1, 8)])
+    assert [main for _, main in out] == [ida] * 7 + [1 - ida]
+
+
+def test_someone_first_seen_after_the_main_person_vanished_is_followed():
+    # one person jumps farther than 1.5 body sizes: a new id, followed at once
+    out = follow([(0.0, [[100, 180]]), (0.1, [[100, 180]]), (0.2, [[300, 180]]), (0.3, [[300, 180]])])
+    assert out == [([0], 0), ([0], 0), ([1], 1), ([1], 1)]
+    # with one person in view all along beside the main one: the newcomer, not them
+    out = follow([(0.0, [[100, 180], [600, 180]]), (0.1, [[600, 180], [300, 180]])])
+    assert out == [([0, 1], 0), ([1, 2], 2)]
+    assert follow([]) == [] and follow([(0.0, [])]) == [([], None)]
 
 
 def test_people_hands_and_blendshapes_round_trip_and_old_fields_stay(tmp_path):

@@ -19,7 +19,7 @@ from ..skeleton.mediapipe import BLENDSHAPES, FLIP, kinect_from_mediapipe, root_
 from ..skeleton.models import KINECT20, Skeleton
 from .filters import OneEuroFilter
 from .landmarkers import Body, Face, Hand, Landmarkers
-from .people import Tracks, assign_ids
+from .people import Tracks, assign_ids, main_person
 from .take import PersonFrame, Take, crowd_take
 
 _WRISTS = (15, 16)      # MediaPipe's left and right wrist: where a hand's landmark 0 should be
@@ -75,6 +75,7 @@ class PoseTracker:
         self._marks = Landmarkers(settings.people, settings.hands, settings.face, video=not static_image,
                                   tiles=settings.tiles)
         self._ids = Tracks()
+        self._main: int | None = None
         self._filters: dict[int, OneEuroFilter] = {}
         self._roots: dict[int, np.ndarray] = {}   # last camera-space translation per person
         self._last_ms = -1
@@ -108,14 +109,16 @@ class PoseTracker:
         return self.track_people(bgr, t)[0]
 
     def track_people(self, bgr: np.ndarray, t: float) -> tuple[Skeleton, tuple[PersonFrame, ...]]:
-        """Everyone in a BGR image taken at `t` seconds: the main person's skeleton (the lowest id in view;
-        all untracked when nobody is) and each person seen, by increasing id, with their hands and face."""
+        """Everyone in a BGR image taken at `t` seconds: the main person's skeleton (`people.main_person`; all
+        untracked while they are out of view) and each person seen, by increasing id, with their hands and
+        face."""
         bodies, hands, faces = self._detect(bgr, t)
         h, w = bgr.shape[:2]
         px = np.array([w, h], dtype=np.float64)
         centres = np.array([b.image[list(_TORSO)].mean(axis=0) * px for b in bodies]).reshape(-1, 2)
         sizes = np.array([_extent(b.image * px) for b in bodies])
         ids, self._ids = assign_ids(self._ids, centres, np.maximum(sizes, 1.0), t, self.settings.memory)
+        self._main = main_person(self._main, self._ids, ids, centres, (w / 2, h / 2))
         live = {k.id for k in self._ids.tracks}
         for pid in set(self._filters) - live:
             del self._filters[pid]
@@ -135,8 +138,9 @@ class PoseTracker:
             face = face_of[k].blendshapes if k in face_of else None
             people.append(PersonFrame(int(pid), skeleton, marks, face))
         people.sort(key=lambda p: p.id)
-        main = people[0].skeleton if people else Skeleton(KINECT20, np.full((len(KINECT20.joints), 3), np.nan),
-                                                           np.zeros(len(KINECT20.joints), dtype=bool))
+        seen = [p for p in people if p.id == self._main]
+        main = seen[0].skeleton if seen else Skeleton(KINECT20, np.full((len(KINECT20.joints), 3), np.nan),
+                                                      np.zeros(len(KINECT20.joints), dtype=bool))
         return main, tuple(people)
 
     def _root(self, pid: int, body: Body, w: int, h: int) -> np.ndarray:

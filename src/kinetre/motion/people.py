@@ -5,6 +5,9 @@ minimises the summed distance between body centres, measured in body sizes (the 
 `scipy.optimize.linear_sum_assignment` solves it). A detection farther than `gate` body sizes from every
 free track starts a new id; a track unseen for longer than `memory` is forgotten, so someone who steps out
 and back within that time keeps their id.
+
+One of them is the main person (`main_person`): the one a camera's own channel follows (the studio page's
+own user, a take's main skeleton). The page (web/src/app/People.ts) keeps the same rule.
 """
 from __future__ import annotations
 
@@ -15,12 +18,14 @@ import numpy as np
 
 @dataclass(frozen=True)
 class Track:
-    """A person seen before: id, body centre and size (image pixels) when last seen, and that time (s)."""
+    """A person seen before: id, body centre and size (image pixels) when last seen, that time and the time
+    they were first seen (s)."""
 
     id: int
     center: tuple[float, float]
     size: float
     seen: float
+    since: float
 
 
 @dataclass(frozen=True)
@@ -67,7 +72,44 @@ def assign_ids(state: Tracks, centers: np.ndarray, sizes: np.ndarray, t: float,
     for r in np.flatnonzero(ids < 0):
         ids[r] = next_id
         next_id += 1
-    moved = {int(i): Track(int(i), (float(c[0]), float(c[1])), float(s), float(t))
+    since = {k.id: k.since for k in live}
+    moved = {int(i): Track(int(i), (float(c[0]), float(c[1])), float(s), float(t), since.get(int(i), float(t)))
              for i, c, s in zip(ids, centers, sizes)}
     kept = [moved.pop(k.id, k) for k in live] + list(moved.values())
     return ids, Tracks(tuple(sorted(kept, key=lambda k: k.id)), next_id)
+
+
+def main_person(main: int | None, state: Tracks, ids: np.ndarray, centers: np.ndarray,
+                middle: tuple[float, float]) -> int | None:
+    """The person a camera's own channel follows, after a frame's `assign_ids`.
+
+    The main person keeps the role by id while remembered, even unseen for a moment, so a second person never
+    takes it over because the landmarker missed the first in a frame or listed them in another order. It
+    passes on when they are forgotten, or when someone first seen after they were last seen is in view (the
+    tracker gave the main person a new id after a jump). It passes to the one of those in view nearest the
+    frame's `middle` (the lowest id on a tie); None when the main person is forgotten and nobody is in view.
+
+    Parameters
+    ----------
+    main : the main person before this frame (None at first)
+    state : the tracks after this frame; ids, centers : this frame's ids and body centres (pixels)
+    middle : the frame's centre (pixels)
+
+    >>> ids, s = assign_ids(Tracks(), np.array([[100.0, 50.0], [330.0, 50.0]]), np.array([40.0, 40.0]), 0.0)
+    >>> main_person(None, s, ids, np.array([[100.0, 50.0], [330.0, 50.0]]), (320.0, 180.0))
+    1
+    """
+    ids = np.asarray(ids, dtype=np.int64).reshape(-1)
+    centers = np.asarray(centers, dtype=np.float64).reshape(-1, 2)
+    known = {k.id: k for k in state.tracks}
+    if main in known:
+        gone = known[main].seen
+        newcomers = [k for k, i in enumerate(ids) if int(i) != main and known[int(i)].since > gone]
+        if not newcomers:
+            return main
+    else:
+        newcomers = list(range(len(ids)))
+    if not newcomers:
+        return None
+    d = np.linalg.norm(centers[newcomers] - np.asarray(middle, dtype=np.float64), axis=1)
+    return int(min(zip(d.tolist(), ids[newcomers].tolist()))[1])

@@ -1,7 +1,7 @@
 // Run the page's People (web/src/app/People.ts, with PersonTracks, bundled by esbuild into BUNDLE) on a
 // fixture: {frames: [{t, width, height, centres: [[x, y] per person]}]} from stdin, each person a standing
 // figure of 33 landmarks around their torso centre. Prints, per frame, the ids in detection order, the main
-// person, the messages sent for the other people, and what Possess (by the body, and by the right hand) and
+// person (and whether this frame saw them), the messages sent for the other people, and what Possess (by the body, and by the right hand) and
 // Release would send.
 // Usage: node people_ts.mjs BUNDLE.mjs < fixture.json
 import { readFileSync } from "node:fs";
@@ -28,6 +28,7 @@ const out = fixture.frames.map((f) => {
     ids: frames.map((p) => p.id),
     inView: people.ids,
     main: people.main,
+    mainSeen: frames.some((p) => p.main),
     sent: sent.slice(before).map((m) => ({ person: m.person, seq: m.seq, tracked: m.tracked.filter(Boolean).length })),
     possess: people.possessMessages(null),
     possessByHand: people.possessMessages("legs", "right"),

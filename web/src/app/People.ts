@@ -1,11 +1,11 @@
 // The people in this page's camera as studio users: each tracked person (a stable id from PersonTracks) is
 // mapped to Kinect 20 with a mapper of their own and sent on a channel of their own. One of them, the
-// "main" person, drives the page's own channel (the user the page's buttons and voice talk about); every
-// other person is sent with a "person" field and becomes the server user `<client>p<id>`. Possess and
-// release apply to them all, so two people in one view can carry one horse through a joint map.
+// "main" person (`mainPerson`), drives the page's own channel (the user the page's buttons and voice talk
+// about); every other person is sent with a "person" field and becomes the server user `<client>p<id>`.
+// Possess and release apply to them all, so two people in one view can carry one horse through a joint map.
 import type { Detection, PoseLandmarks } from '../capture/detection';
 import { KinectMapper, type KinectFrame } from '../capture/KinectMapper';
-import { PersonTracks, distinctPoses } from '../capture/PersonTracks';
+import { PersonTracks, distinctPoses, torsoCentre, type Track } from '../capture/PersonTracks';
 import { possessMessage, type PuppetHand } from '../rigging/PuppetControl';
 
 export interface PersonFrame {
@@ -15,11 +15,33 @@ export interface PersonFrame {
   pose: PoseLandmarks; // the landmarks it was mapped from
 }
 
+/** The person the page's own channel follows, after a detection's ids are assigned (`kinetre.motion.people.
+ * main_person` keeps the same rule for `kinetre capture`). The main person keeps the role by id while
+ * remembered, even unseen for a moment, so a second person never takes it over because the landmarker missed
+ * the first in a frame or listed them in another order. It passes on when they are forgotten, or when someone
+ * first seen after they were last seen is in view (the tracker gave the main person a new id after a jump):
+ * to the one of those in view nearest the frame's `middle` (the lowest id on a tie); null when the main person
+ * is forgotten and nobody is in view. `ids`, `centres`: this detection's people; `middle` in their units. */
+export function mainPerson(main: number | null, remembered: readonly Readonly<Track>[], ids: number[],
+  centres: [number, number][], middle: [number, number]): number | null {
+  const known = new Map(remembered.map((t) => [t.id, t]));
+  const kept = main === null ? undefined : known.get(main);
+  const candidates = ids.map((id, i) => ({ id, i }))
+    .filter(({ id }) => !kept || (id !== main && (known.get(id)?.firstSeen ?? -Infinity) > kept.lastSeen));
+  if (kept && !candidates.length) return main;
+  let best: number | null = null, nearest = Infinity;
+  for (const { id, i } of candidates) {
+    const d = Math.hypot(centres[i][0] - middle[0], centres[i][1] - middle[1]);
+    if (d < nearest || (d === nearest && best !== null && id < best)) { best = id; nearest = d; }
+  }
+  return best;
+}
+
 export class People {
   readonly tracks = new PersonTracks();
   /** Ids in view in the newest detection, ascending. */
   ids: number[] = [];
-  /** The person the page's own channel follows: kept while in view, else the lowest id in view. */
+  /** The person the page's own channel follows (`mainPerson`). */
   main: number | null = null;
   private readonly mappers = new Map<number, KinectMapper>();
   private readonly seqs = new Map<number, number>();
@@ -31,9 +53,11 @@ export class People {
   /** Ids and Kinect frames of the people in `d`, in its order; the frames of all but the main one are sent. */
   update(d: Detection): PersonFrame[] {
     const poses = distinctPoses(d.poses, d.width / d.height);
-    const ids = this.tracks.update(poses, d.width / d.height, d.t);
+    const aspect = d.width / d.height;
+    const ids = this.tracks.update(poses, aspect, d.t);
     this.ids = [...ids].sort((a, b) => a - b);
-    if (this.ids.length && (this.main === null || !this.ids.includes(this.main))) this.main = this.ids[0];
+    this.main = mainPerson(this.main, this.tracks.remembered, ids, poses.map((p) => torsoCentre(p, aspect)),
+      [0.5, 0.5 / aspect]);
     for (const id of this.mappers.keys()) {
       if (!this.tracks.ids.includes(id)) { this.mappers.delete(id); this.frames.delete(id); }
     }
@@ -57,9 +81,10 @@ export class People {
     return out;
   }
 
-  /** The other people in view (not the main one), ascending: the users `<client>p<id>`. */
+  /** The other people remembered (not the main one) who have a user `<client>p<id>`, ascending: one the
+   * landmarker misses for a moment is still one of them. */
   get others(): number[] {
-    return this.ids.filter((id) => id !== this.main);
+    return this.tracks.ids.filter((id) => id !== this.main && this.seqs.has(id)).sort((a, b) => a - b);
   }
 
   /** Possess after the page's own user: the others in id order (a joint map gives them its later sources), each

@@ -16,6 +16,7 @@ export interface Track {
   id: number;
   centre: [number, number]; // torso centre, in image widths
   lastSeen: number; // ms
+  firstSeen: number; // ms
 }
 
 export function torsoCentre(pose: PoseLandmarks, aspect: number): [number, number] {
@@ -80,7 +81,7 @@ export class PersonTracks {
     return centres.map((centre, i) => {
       let track = match[i] >= 0 ? this.tracks[match[i]] : undefined;
       if (!track) {
-        track = { id: this.nextId++, centre, lastSeen: now };
+        track = { id: this.nextId++, centre, lastSeen: now, firstSeen: now };
         this.tracks.push(track);
       }
       track.centre = centre;
@@ -92,6 +93,11 @@ export class PersonTracks {
   /** Ids remembered (seen within the memory), oldest first. */
   get ids(): number[] {
     return this.tracks.map((t) => t.id);
+  }
+
+  /** The people remembered, as of the last update. */
+  get remembered(): readonly Readonly<Track>[] {
+    return this.tracks;
   }
 
   forget(): void {
