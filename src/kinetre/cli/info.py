@@ -106,10 +106,24 @@ def _info_take(take, kind: str) -> None:
     lo, hi = np.nanmin(take.positions, axis=(0, 1)), np.nanmax(take.positions, axis=(0, 1))
     print(f"  extent (m): x {lo[0]:.2f}..{hi[0]:.2f}  y {lo[1]:.2f}..{hi[1]:.2f}  z {lo[2]:.2f}..{hi[2]:.2f}")
     print(f"  joints: {', '.join(take.model.joints)}")
+    _print_quality(take)
     if kind == "recorded take":
         _print_take_map(take)
     if take.hands is not None:
         _print_hands(take)
+
+
+def _print_quality(take) -> None:
+    """How clean the motion is (kinetre.motion.quality), and what cleaned it when the take records that."""
+    from ..motion.quality import take_quality
+    print("  quality:")
+    for line in take_quality(take).lines():
+        print(f"    {line}")
+    applied = take.applied or {}
+    done = [name for name in ("smoothing", "contact") if name in applied]
+    if done:
+        lag = (applied.get("smoothing") or {}).get("lag_ms")
+        print(f"  cleaned: {' and '.join(done)}" + (f" (lag {lag:.0f} ms)" if lag is not None else ""))
 
 
 def _print_hands(take) -> None:

@@ -13,7 +13,7 @@ it comes back, so a joint that reappears elsewhere does not glide there.
 """
 from __future__ import annotations
 
-import math
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -41,11 +41,14 @@ class OneEuroFilter:
     (0.0, 0.1732)
     """
 
-    def __init__(self, min_cutoff: float = 1.0, beta: float = 20.0, d_cutoff: float = 1.0):
+    def __init__(self, min_cutoff=1.0, beta=20.0, d_cutoff=1.0):
+        # each parameter is a number, or an array broadcasting against the samples (one per joint: (J, 1))
         for name, value in (("min_cutoff", min_cutoff), ("beta", beta), ("d_cutoff", d_cutoff)):
-            if not (math.isfinite(value) and value >= 0) or (name != "beta" and value == 0):
+            v = np.asarray(value, dtype=np.float64)
+            if not (np.isfinite(v).all() and (v >= 0).all()) or (name != "beta" and (v == 0).any()):
                 raise BadMotionError(f"OneEuroFilter: {name} must be a positive number, got {value!r}")
-        self.min_cutoff, self.beta, self.d_cutoff = float(min_cutoff), float(beta), float(d_cutoff)
+        scalar = lambda v: float(v) if np.ndim(v) == 0 else np.asarray(v, dtype=np.float64)  # noqa: E731
+        self.min_cutoff, self.beta, self.d_cutoff = scalar(min_cutoff), scalar(beta), scalar(d_cutoff)
         self._x = None   # last filtered value, NaN where the element has no state
         self._dx = None  # last filtered speed
         self._t = None
@@ -81,9 +84,78 @@ class OneEuroFilter:
         return self._x.copy()
 
 
-def one_euro(signal: np.ndarray, fps: float, min_cutoff: float = 1.0, beta: float = 20.0,
-             d_cutoff: float = 1.0) -> np.ndarray:
+def one_euro(signal: np.ndarray, fps: float, min_cutoff=1.0, beta=20.0, d_cutoff=1.0) -> np.ndarray:
     """Filter a whole recording (T, ...) sampled at `fps`, frame by frame (causal, as live)."""
     f = OneEuroFilter(min_cutoff, beta, d_cutoff)
     signal = np.asarray(signal, dtype=np.float64)
     return np.stack([f(s, i / fps) for i, s in enumerate(signal)]) if len(signal) else signal.copy()
+
+
+def one_euro_both_ways(signal: np.ndarray, fps: float, min_cutoff=1.0, beta=20.0, d_cutoff=1.0) -> np.ndarray:
+    """Filter a whole recording forwards, then the result backwards: each pass delays by what the other
+    advances, so the pair adds no lag (as filtfilt does for a linear filter). Offline only."""
+    once = one_euro(signal, fps, min_cutoff, beta, d_cutoff)
+    return one_euro(once[::-1], fps, min_cutoff, beta, d_cutoff)[::-1].copy()
+
+
+@dataclass(frozen=True)
+class EuroTuning:
+    """One-Euro parameters per joint, set from a take's own noise and speed.
+
+    noise : (J,) metres, the jitter's standard deviation per axis (residual of a smooth fit, robust)
+    speed : (J,) metres per second, a joint's typical moving speed (75th percentile of the smooth fit's)
+    min_cutoff, beta : (J,) the filter's parameters; d_cutoff : the speed estimate's cutoff (Hz)
+    """
+
+    noise: np.ndarray
+    speed: np.ndarray
+    min_cutoff: np.ndarray
+    beta: np.ndarray
+    d_cutoff: float
+
+    def to_dict(self, joints: tuple[str, ...]) -> dict:
+        return {name: {"min_cutoff": round(float(m), 4), "beta": round(float(b), 4),
+                       "noise_cm": round(100 * float(n), 3)}
+                for name, m, b, n in zip(joints, self.min_cutoff, self.beta, self.noise)}
+
+
+def tune_one_euro(positions: np.ndarray, fps: float, rest_noise: float = 0.002, moving_cutoff: float = 6.0,
+                  d_cutoff: float = 2.0) -> EuroTuning:
+    """One-Euro parameters per joint of a (T, J, 3) take (Casiez et al.'s tuning, done from the data).
+
+    At rest a first-order low-pass at fc keeps a fraction alpha / (2 - alpha) of white noise's variance,
+    alpha = 1 / (1 + fps / (2 pi fc)); min_cutoff is the fc that brings the joint's measured noise down to
+    `rest_noise` metres. beta raises the cutoff to `moving_cutoff` Hz at the joint's typical speed, where a
+    first-order filter's lag is 1 / (2 pi fc) (27 ms at 6 Hz)."""
+    from scipy.signal import savgol_filter
+    pos = np.asarray(positions, dtype=np.float64)
+    j = pos.shape[1]
+    noise, speed = np.full(j, np.nan), np.full(j, np.nan)
+    w = max(5, int(round(fps / 3)) | 1)
+    for k in range(j):
+        ok = np.isfinite(pos[:, k]).all(axis=1)
+        res, spd = [], []
+        for a, b in _runs(ok):
+            if b - a < w:
+                continue
+            fit = savgol_filter(pos[a:b, k], w, 3, axis=0)
+            res.append((pos[a:b, k] - fit).ravel())
+            spd.append(np.linalg.norm(np.diff(fit, axis=0), axis=1) * fps)
+        if res:
+            r = np.concatenate(res)
+            noise[k] = 1.4826 * np.median(np.abs(r - np.median(r)))
+            speed[k] = np.percentile(np.concatenate(spd), 75)
+    noise = np.where(np.isfinite(noise), noise, np.nanmedian(noise) if np.isfinite(noise).any() else rest_noise)
+    speed = np.where(np.isfinite(speed), speed, np.nanmedian(speed) if np.isfinite(speed).any() else 0.5)
+    ratio = np.clip(rest_noise / np.maximum(noise, 1e-9), 0.0, 1.0) ** 2
+    alpha = 2 * ratio / (1 + ratio)
+    top = 0.9 * moving_cutoff
+    fc = np.clip(fps / (2 * np.pi) * alpha / np.maximum(1 - alpha, 1e-9), 0.3, top)
+    beta = (moving_cutoff - fc) / np.maximum(speed, 0.05)
+    return EuroTuning(noise, speed, fc, beta, float(d_cutoff))
+
+
+def _runs(mask: np.ndarray) -> list[tuple[int, int]]:
+    m = np.concatenate([[False], np.asarray(mask, bool), [False]])
+    edges = np.flatnonzero(m[1:] != m[:-1])
+    return list(zip(edges[::2].tolist(), edges[1::2].tolist()))

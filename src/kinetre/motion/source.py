@@ -79,4 +79,4 @@ def resample(take: Take, fps: float) -> Take:
         return None if flags is None else flags[i0] & (flags[i1] | exact.reshape((n,) + (1,) * (flags.ndim - 1)))
     return Take(take.model, lerp(take.positions), both(take.tracked), fps, take.source, take.people,
                 lerp(take.crowd_positions), both(take.crowd_tracked), lerp(take.hands), lerp(take.blendshapes),
-                take.blendshape_names)
+                take.blendshape_names, applied=take.applied)

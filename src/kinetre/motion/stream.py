@@ -15,6 +15,7 @@ from __future__ import annotations
 import json
 import math
 import os
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -27,12 +28,15 @@ FORMAT = "kinetre-take"
 VERSION = 1
 
 
-def header(model: SkeletonModel, fps: float, source: str = "", blendshape_names: tuple[str, ...] = ()) -> dict:
+def header(model: SkeletonModel, fps: float, source: str = "", blendshape_names: tuple[str, ...] = (),
+           applied: dict | None = None) -> dict:
     """The first line of a take file, as a dict."""
     head = {"format": FORMAT, "version": VERSION, "model": model.name, "joints": list(model.joints),
             "parents": list(model.parents), "fps": float(fps), "source": source}
     if blendshape_names:
         head["blendshapes"] = list(blendshape_names)
+    if applied is not None:
+        head["applied"] = applied
     return head
 
 
@@ -91,13 +95,13 @@ class TakeWriter:
     """
 
     def __init__(self, file, model: SkeletonModel, fps: float, source: str = "",
-                 blendshape_names: tuple[str, ...] = ()):
+                 blendshape_names: tuple[str, ...] = (), applied: dict | None = None):
         self.file = file
         self.model = model
         self.fps = float(fps)
         self.frames = 0
         self.blendshapes = len(blendshape_names)
-        self._line(header(model, fps, source, blendshape_names))
+        self._line(header(model, fps, source, blendshape_names, applied))
 
     def _line(self, record: dict) -> None:
         self.file.write(json.dumps(record, allow_nan=False, separators=(",", ":")) + "\n")
@@ -124,7 +128,7 @@ def write_stream(path: str | os.PathLike, take: Take | list[Skeleton], fps: floa
     try:
         with open(path, "w", encoding="utf-8") as f:
             writer = TakeWriter(f, take.model, take.fps, take.source if source is None else source,
-                                take.blendshape_names)
+                                take.blendshape_names, take.applied)
             for i in range(len(take)):
                 writer.write(take.frame(i), people=_people_at(take, i))
     except OSError as e:
@@ -163,6 +167,9 @@ def read_stream(path: str | os.PathLike) -> Take:
     names = head.get("blendshapes", [])
     if not (isinstance(names, list) and all(isinstance(x, str) for x in names)):
         raise BadMotionError(f"{path}: line {lines[0][0]}: blendshapes must be a list of names")
+    applied = head.get("applied")
+    if applied is not None and not isinstance(applied, dict):
+        raise BadMotionError(f"{path}: line {lines[0][0]}: applied must be an object")
     j = len(model.joints)
     crowd: list[tuple[PersonFrame, ...]] = []
     positions = np.full((len(lines) - 1, j, 3), np.nan)
@@ -186,10 +193,10 @@ def read_stream(path: str | os.PathLike) -> Take:
         raise BadMotionError(f"{path}: the take has a header but no frames")
     source = str(head.get("source") or path)
     if not any(crowd):
-        return Take(model, positions, tracked, float(fps), source)
+        return Take(model, positions, tracked, float(fps), source, applied=applied)
     main = [Skeleton(model, positions[k], tracked[k]) for k in range(len(positions))]
     try:
-        return crowd_take(main, crowd, float(fps), source, tuple(names))
+        return replace(crowd_take(main, crowd, float(fps), source, tuple(names)), applied=applied)
     except BadMotionError as e:
         raise BadMotionError(f"{path}: {e}") from None
 

@@ -44,6 +44,9 @@ class Take:
         Per joint, the world rotation of the bone that carries it (its parent joint's frame, twist included)
         where the source has joint rotations (BVH, glTF); NaN where a joint has none; None for
         position-only sources (a camera).
+    applied : dict or None
+        What cleaned the take after tracking (smoothing, contact; `kinetre.motion.cleanup`), as written in the
+        take file's header; None for a take as its source gave it.
     native : Take or None
         A take mapped to Kinect-20 from a file's own skeleton: that skeleton as the file has it (its joints,
         units and frame, before the mapping's turn), so a source that already lies inside a mesh can drive
@@ -70,6 +73,7 @@ class Take:
     blendshape_names: tuple[str, ...] = ()
     bone_frames: np.ndarray | None = None
     native: "Take | None" = None
+    applied: dict | None = None
 
     def __post_init__(self):
         pos = np.asarray(self.positions, dtype=np.float64)
@@ -132,7 +136,8 @@ class Take:
                 "crowd_positions": None if self.crowd_positions is None else move(self.crowd_positions[s]),
                 "crowd_tracked": pick(self.crowd_tracked),
                 "hands": None if self.hands is None else move(self.hands[s]),
-                "blendshapes": pick(self.blendshapes), "blendshape_names": self.blendshape_names}
+                "blendshapes": pick(self.blendshapes), "blendshape_names": self.blendshape_names,
+                "applied": self.applied}
 
     def person(self, pid: int) -> "Take":
         """Person `pid` alone (their joints, hands and face) as a one-person take."""
@@ -146,7 +151,8 @@ class Take:
         return Take(self.model, self.crowd_positions[:, k], self.crowd_tracked[:, k], self.fps, self.source,
                     (pid,), self.crowd_positions[:, one], self.crowd_tracked[:, one],
                     None if self.hands is None else self.hands[:, one],
-                    None if self.blendshapes is None else self.blendshapes[:, one], self.blendshape_names)
+                    None if self.blendshapes is None else self.blendshapes[:, one], self.blendshape_names,
+                    applied=self.applied)
 
     def split_people(self) -> list["Take"]:
         """Everyone as a one-person take, by increasing id (the take itself when it records no people)."""
@@ -232,6 +238,21 @@ class Take:
         framed = all(f.bone_frames is not None for f in frames)
         return Take(model, np.stack([f.positions for f in frames]), np.stack([f.tracked for f in frames]),
                     fps, source, bone_frames=np.stack([f.bone_frames for f in frames]) if framed else None)
+
+
+_CAMERA_EXTS = (".mp4", ".mov", ".avi", ".mkv", ".webm")
+
+
+def is_camera_take(take: Take) -> bool:
+    """Whether a take was tracked from images (a video or a camera): positions only, with people or a camera
+    or video source."""
+    src = take.source.lower()
+    return take.bone_frames is None and (bool(take.people) or src.startswith("camera") or src.endswith(_CAMERA_EXTS))
+
+
+def camera_viewpoint(take: Take) -> np.ndarray | None:
+    """Where the camera of a camera take is (its origin, docs/take-format.md); None for other takes."""
+    return np.zeros(3) if is_camera_take(take) else None
 
 
 @dataclass(frozen=True, eq=False)

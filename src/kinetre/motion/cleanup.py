@@ -1,0 +1,282 @@
+"""Cleaning a tracked take so it looks right: smoothing without lag, feet held where they stand, jumps kept.
+
+Offline (`clean_take`, the whole take known):
+
+1. Smoothing: a One-Euro filter per joint with parameters from the take's own noise and speed
+   (`filters.tune_one_euro`), run forwards then backwards so it adds no lag.
+2. Contact: stance per contact joint and the floor, from the smoothed take (`contact.detect_stance`).
+3. Foot locking: during each stance run the contact joint is held at the run's median point by two-bone IK on
+   its leg, blending in before touch-down and out after lift-off over `blend` seconds; a contact joint
+   below its resting level on the floor is lifted to it. Frames where every contact joint is off the floor
+   (a jump) are left as smoothed.
+
+Live (`LiveCleaner`, one frame at a time, no delay): a causal One-Euro filter, stance from backward speeds,
+the floor from the stance points seen so far, and each stance held where it began.
+
+What was applied (and its measured lag) is recorded in the take's `applied` header.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from .contact import (Floor, Stance, StanceSettings, body_height, contact_joints, detect_stance, fit_floor,
+                      joint_speed, place_contacts, runs, NOMINAL_HEIGHT)
+from .filters import OneEuroFilter, one_euro_both_ways, tune_one_euro
+from .quality import lag_ms
+from .take import Take, camera_viewpoint
+
+
+@dataclass(frozen=True)
+class CleanupSettings:
+    """smooth : the zero-lag One-Euro pass; contact : stance, floor and foot locking; blend : seconds over
+    which a held joint lets go (and, offline, takes hold)."""
+
+    smooth: bool = True
+    contact: bool = True
+    blend: float = 0.1
+    stance: StanceSettings = StanceSettings()
+
+
+def _holds(mask: np.ndarray, points: np.ndarray, airborne: np.ndarray, ramp: int
+           ) -> tuple[np.ndarray, np.ndarray]:
+    """(T,) weight and (T, 3) hold point of one contact joint: 1 on each stance run (held at its median),
+    falling linearly to 0 over `ramp` frames either side, never on airborne frames."""
+    t = len(mask)
+    weight = np.zeros(t)
+    hold = np.full((t, 3), np.nan)
+    for a, b in runs(mask):
+        seg = points[a:b]
+        seg = seg[np.isfinite(seg).all(axis=1)]
+        if not len(seg):
+            continue
+        at = np.median(seg, axis=0)
+        lo, hi = max(0, a - ramp), min(t, b + ramp)
+        idx = np.arange(lo, hi)
+        w = np.ones(len(idx))
+        w[idx < a] = 1 - (a - idx[idx < a]) / (ramp + 1)
+        w[idx >= b] = 1 - (idx[idx >= b] - b + 1) / (ramp + 1)
+        w[airborne[idx] & ~mask[idx]] = 0.0
+        better = w > weight[idx]
+        weight[idx[better]], hold[idx[better]] = w[better], at
+    return weight, hold
+
+
+def _fill(values: np.ndarray, known: np.ndarray) -> np.ndarray:
+    """(T, D) values with the rows where `known` is False interpolated linearly in time between known rows
+    (held at the ends); zeros when no row is known."""
+    out = np.zeros_like(values)
+    idx = np.flatnonzero(known)
+    if not len(idx):
+        return out
+    for d in range(values.shape[1]):
+        out[:, d] = np.interp(np.arange(len(values)), idx, values[idx, d])
+    return out
+
+
+def lock_contacts(model, positions: np.ndarray, fps: float, stance: Stance, blend: float,
+                  bone_frames: np.ndarray | None = None, move_root: bool = False
+                  ) -> tuple[np.ndarray, np.ndarray | None]:
+    """Hold each contact joint of `stance` through its stance runs and lift it out of the floor (offline).
+
+    With `move_root` (a camera take, whose depth and place wander as a whole) the body is first shifted
+    horizontally so the held joints stay put, the shift interpolated across frames where nothing is held
+    (a jump keeps its own shape); two-bone IK then holds each joint exactly."""
+    pos = np.array(positions, dtype=np.float64)
+    ramp = max(0, int(round(blend * fps)))
+    airborne = stance.airborne()
+    c_n = len(stance.joints)
+    holds = [_holds(stance.mask[:, c], pos[:, j], airborne, ramp) for c, j in enumerate(stance.joints)]
+    if move_root and c_n:
+        w = np.stack([h[0] for h in holds], axis=1)                                     # (T, C)
+        off = np.stack([h[1] - pos[:, j] for h, j in zip(holds, stance.joints)], axis=1)  # (T, C, 3)
+        use = (w > 0) & np.isfinite(off).all(axis=2)
+        ws = np.where(use, w, 0.0)
+        total = ws.sum(axis=1)
+        shift = (ws[..., None] * np.where(use[..., None], off, 0.0)).sum(axis=1) / np.maximum(total, 1e-12)[:, None]
+        shift[:, 1] = 0.0
+        pos += _fill(shift, total > 0)[:, None, :]
+        holds = [_holds(stance.mask[:, c], pos[:, j], airborne, ramp) for c, j in enumerate(stance.joints)]
+    targets = np.full((len(pos), c_n, 3), np.nan)
+    weights = np.zeros((len(pos), c_n))
+    for c, j in enumerate(stance.joints):
+        w, hold = holds[c]
+        p = pos[:, j]
+        aim = np.where(w[:, None] > 0, p + w[:, None] * (hold - p), p)
+        sink = stance.level[c] - stance.floor.above(aim)  # below its resting level: lift it
+        aim[:, 1] += np.where(np.nan_to_num(sink) > 0, np.nan_to_num(sink), 0.0)
+        moved = np.isfinite(aim).all(axis=1) & (np.abs(np.nan_to_num(aim - p)).max(axis=1) > 0)
+        targets[:, c] = aim
+        weights[moved, c] = 1.0
+    return place_contacts(model, pos, targets, weights, stance.joints, bone_frames)
+
+
+@dataclass(frozen=True)
+class TrackResult:
+    positions: np.ndarray
+    bone_frames: np.ndarray | None
+    stance: Stance | None
+    record: dict
+
+
+def clean_track(model, positions: np.ndarray, fps: float, settings: CleanupSettings = CleanupSettings(),
+                bone_frames: np.ndarray | None = None, floor: Floor | None = None,
+                viewpoint: np.ndarray | None = None) -> TrackResult:
+    """Clean one person's (T, J, 3) joints offline; returns the new joints and a record of what was done.
+    `viewpoint`: the camera's position for a camera take (its depth is the noisy direction)."""
+    raw = np.asarray(positions, dtype=np.float64)
+    pos, record = raw, {}
+    if settings.smooth:
+        tune = tune_one_euro(raw, fps)
+        pos = one_euro_both_ways(raw, fps, tune.min_cutoff[:, None], tune.beta[:, None], tune.d_cutoff)
+        pos = np.where(np.isfinite(raw), pos, np.nan)
+        record["smoothing"] = {"filter": "one-euro", "pass": "forward-backward", "d_cutoff": tune.d_cutoff,
+                               "lag_ms": _round(lag_ms(pos, raw, fps)),
+                               "joints": tune.to_dict(model.joints)}
+    stance = None
+    if settings.contact:
+        joints = contact_joints(model, pos)
+        stance = detect_stance(pos, fps, joints, settings.stance, floor, viewpoint)
+        pos, bone_frames = lock_contacts(model, pos, fps, stance, settings.blend, bone_frames,
+                                         move_root=viewpoint is not None)
+        record["contact"] = {"joints": [model.joints[j] for j in joints], "floor": stance.floor.to_dict(),
+                             "blend_s": settings.blend,
+                             "stance_frames": [int(s) for s in stance.mask.sum(axis=0)],
+                             "airborne_frames": int(stance.airborne().sum())}
+    return TrackResult(pos, bone_frames, stance, record)
+
+
+def _round(x: float) -> float | None:
+    return None if not np.isfinite(x) else round(float(x), 2)
+
+
+def clean_take(take: Take, settings: CleanupSettings = CleanupSettings()) -> Take:
+    """The take smoothed and with its contacts held (offline); every person of a camera take is cleaned,
+    on one floor fitted to everyone's stance points. `applied` records what was done."""
+    if not (settings.smooth or settings.contact):
+        return take
+    if not take.people:
+        out = clean_track(take.model, take.positions, take.fps, settings, take.bone_frames,
+                          viewpoint=camera_viewpoint(take))
+        return replace(take, positions=out.positions, bone_frames=out.bone_frames,
+                       applied={"offline": True, **out.record}, native=take.native)
+    main = take.main_person()
+    view = camera_viewpoint(take)
+    floor = None
+    if settings.contact:  # one floor for everyone in view: fit it to the first cleaning pass's stance points
+        pts = []
+        for k in range(len(take.people)):
+            first = clean_track(take.model, take.crowd_positions[:, k], take.fps, settings, viewpoint=view)
+            if first.stance is not None:
+                for c, j in enumerate(first.stance.joints):
+                    pts.append(first.positions[first.stance.mask[:, c], j])
+        floor = fit_floor(np.concatenate(pts)) if pts and sum(map(len, pts)) else None
+    crowd = take.crowd_positions.copy()
+    record = {}
+    for k in range(len(take.people)):
+        out = clean_track(take.model, take.crowd_positions[:, k], take.fps, settings, floor=floor,
+                          viewpoint=view)
+        crowd[:, k] = np.where(take.crowd_tracked[:, k, :, None], out.positions, np.nan)
+        record = record or out.record
+    positions = take.positions.copy()
+    seen = main >= 0
+    positions[seen] = crowd[np.flatnonzero(seen), main[seen]]
+    return replace(take, positions=positions, crowd_positions=crowd,
+                   applied={"offline": True, "people": len(take.people), **record})
+
+
+class LiveCleaner:
+    """Clean one person's joints frame by frame, causally, with no delay (a camera or the studio's live path).
+
+    >>> import kinetre
+    >>> c = LiveCleaner(kinetre.KINECT20)
+    >>> c(np.zeros((20, 3)), 0.0).shape
+    (20, 3)
+    """
+
+    def __init__(self, model, settings: CleanupSettings = CleanupSettings(), min_cutoff: float = 1.0,
+                 beta: float = 20.0, floor: Floor | None = None, history: float = 10.0):
+        self.model, self.settings = model, settings
+        self.filter = OneEuroFilter(min_cutoff, beta, 2.0)
+        self.floor = floor
+        self.fixed_floor = floor is not None
+        self.history = history
+        self.joints: tuple[int, ...] | None = None
+        self._recent: list[np.ndarray] = []        # the last frames (for backward speeds)
+        self._times: list[float] = []
+        self._stance_pts: list[np.ndarray] = []    # stance points seen, for the floor
+        self._on: np.ndarray | None = None         # per contact joint: in stance now
+        self._hold: np.ndarray | None = None       # where each held joint is held
+        self._weight: np.ndarray | None = None
+        self._heights: list[float] = []
+
+    def __call__(self, positions: np.ndarray, t: float) -> np.ndarray:
+        """The cleaned (J, 3) joints of a frame taken at `t` seconds (NaN rows stay NaN)."""
+        raw = np.asarray(positions, dtype=np.float64)
+        pos = self.filter(raw, t) if self.settings.smooth else raw.copy()
+        if not self.settings.contact:
+            return pos
+        if self.joints is None:
+            if not np.isfinite(raw).all(axis=1).sum() >= 2:
+                return pos
+            self.joints = contact_joints(self.model, raw[None])
+            c = len(self.joints)
+            self._on, self._weight = np.zeros(c, bool), np.zeros(c)
+            self._hold = np.full((c, 3), np.nan)
+        self._recent.append(pos)
+        self._times.append(t)
+        fps = self._fps()
+        window = self.settings.stance.window
+        keep = max(2, int(round(window * fps)) + 1)
+        del self._recent[:-keep], self._times[:-keep]
+        if np.isfinite(pos).all(axis=1).sum() >= 2:
+            self._heights.append(float(np.nanmax(pos[:, 1]) - np.nanmin(pos[:, 1])))
+            del self._heights[:-int(self.history * fps)]
+        scale = (float(np.median(self._heights)) if self._heights else NOMINAL_HEIGHT) / NOMINAL_HEIGHT
+        st = self.settings.stance
+        track = np.stack(self._recent)
+        floor = self.floor or Floor(float(np.nanmin(pos[list(self.joints), 1])) if
+                                    np.isfinite(pos[list(self.joints), 1]).any() else 0.0)
+        targets = np.full((1, len(self.joints), 3), np.nan)
+        weights = np.zeros((1, len(self.joints)))
+        ramp = max(1, int(round(self.settings.blend * fps)))
+        for c, j in enumerate(self.joints):
+            p = pos[j]
+            if not np.isfinite(p).all():
+                self._on[c], self._weight[c] = False, 0.0
+                continue
+            speed = joint_speed(track[:, j], fps, window, causal=True)[-1]
+            speed = np.inf if not np.isfinite(speed) else speed
+            height = float(floor.above(p))
+            if self._on[c]:
+                self._on[c] = not (height > st.height_off * scale or speed > st.speed_off * scale)
+            else:
+                self._on[c] = height < st.height_on * scale and speed < st.speed_on * scale
+            if self._on[c]:
+                if self._weight[c] < 1.0 or not np.isfinite(self._hold[c]).all():
+                    self._hold[c] = p  # held where it touched down
+                self._weight[c] = 1.0
+                self._stance_pts.append(p.copy())
+                del self._stance_pts[:-int(self.history * fps)]
+            else:
+                self._weight[c] = max(0.0, self._weight[c] - 1.0 / (ramp + 1))
+            if self._weight[c] > 0:
+                targets[0, c] = p + self._weight[c] * (self._hold[c] - p)
+                weights[0, c] = 1.0
+        if self._on.any():
+            pass
+        elif weights.any():  # every contact off the floor: a jump stays as tracked
+            weights[:] = 0.0
+            self._weight[:] = 0.0
+        if not self.fixed_floor and len(self._stance_pts) >= 10:
+            self.floor = fit_floor(np.array(self._stance_pts))
+        out, _ = place_contacts(self.model, pos[None], targets, weights, self.joints)
+        return out[0]
+
+    def _fps(self) -> float:
+        if len(self._times) < 2:
+            return 30.0
+        dt = np.diff(self._times)
+        dt = dt[dt > 0]
+        return float(1.0 / np.median(dt)) if len(dt) else 30.0
