@@ -10,7 +10,7 @@
 // track: detection rate, render rate and capture → transforms latency while `seconds` of tracking run.
 import { mkdirSync, readFileSync } from 'node:fs';
 import { join, resolve } from 'node:path';
-import { launchWithCamera, report, state, until } from './harness.mjs';
+import { launchWithCamera, pageNow, report, shownSince, state, until, watchTransforms } from './harness.mjs';
 
 const config = JSON.parse(process.argv[2]);
 const result = { scenario: config.scenario, steps: [] };
@@ -108,14 +108,16 @@ async function startCamera(page, people) {
   return seconds;
 }
 
-/** Both people in view, press P, and the state once both possess (or the page shows an error). */
-async function possessBoth(page) {
+/** Both people in view, press P, and the state once the server says both possess (each the mesh `meshes`
+ * gives their id, when given), or the page shows an error. */
+async function possessBoth(page, meshes = null) {
   await until(page, () => window.kinetre.state().people.length >= 2, null, 120000);
   await page.keyboard.press('p');
-  await until(page, () => {
+  await until(page, (want) => {
     const s = window.kinetre.state();
-    return (s.personUsers.length >= 2 && s.personUsers.every((p) => p.possessing)) || document.querySelector('#message').className === 'error';
-  }, null, 90000);
+    return (s.personUsers.length >= 2 && s.personUsers.every((p) => p.possessing && (!want || p.mesh === want[p.id])))
+      || document.querySelector('#message').className === 'error';
+  }, meshes, 120000).catch((e) => log('possess not acknowledged', { error: String(e) }));
   return state(page);
 }
 
@@ -139,6 +141,7 @@ async function horse() {
         return out;
       };
     });
+    await watchTransforms(page);
     await startCamera(page, 2);
     // ids over the clip: the same two people keep the same two ids
     const seen = new Set();
@@ -154,10 +157,20 @@ async function horse() {
     result.trace = await page.evaluate(() => window.peopleTrace);
     result.views = views;
     await bothInView(page);
-    const unfitted = (await state(page)).placement.position;
-    await page.keyboard.press('f');
-    await until(page, (p) => window.kinetre.state().placement.position[2] !== p[2], unfitted, 30000);
-    const s = await possessBoth(page);
+    // Fit, then Possess (the server takes them in order); a refusal (MediaPipe's depth of a small figure can
+    // jump by a metre between the two) is answered as a user would: Release all, and again, up to four times
+    let s = null;
+    for (let attempt = 0; attempt < 4 && !(s && s.personUsers.every((p) => p.possessing)); attempt++) {
+      if (attempt) {
+        await page.keyboard.press('r');
+        await until(page, () => window.kinetre.state().users.every((u) => !u.possessing), null, 60000);
+        await bothInView(page);
+      }
+      await page.evaluate(() => window.kinetre.studio.panel.setMessage(''));
+      await page.keyboard.press('f');
+      s = await possessBoth(page);
+      log('possess', { attempt, message: s.message, possessing: s.personUsers.map((p) => [p.id, p.possessing]) });
+    }
     result.skeletons = await page.evaluate(() => Object.fromEntries([...window.kinetre.studio.capture.people.frames].map(([id, f]) => [id, f.positions])));
     result.possessed = s.personUsers;
     result.placement = s.placement;
@@ -176,7 +189,7 @@ async function horse() {
       // the map gives the front legs to the page's own channel: measure again if another person took it
       for (let attempt = 0; attempt < 3; attempt++) {
         await freeze(page, who);
-        await page.waitForTimeout(1500); // the frames sent before it are solved and shown
+        await shownSince(page, await pageNow(page)); // the poses shown from here on are from frames sent since
         const before = await main();
         result.legMotion[who] = await motion(page, [legs.front, legs.back]);
         const after = await main();
@@ -212,36 +225,46 @@ async function meshes() {
     await startCamera(page, 2);
     const other = await bothInView(page);
     const [first, second] = result.added.map((m) => m.id);
+    // the other person (not the page's own user, whichever the landmarker found first) gets the added mesh,
+    // and the page has taken the choice; the page's own user keeps the default one
+    result.mainBefore = (await state(page)).mainPerson;
     await page.selectOption(`select[data-person="${other}"]`, String(second));
-    // Fit then Possess at once, as a dancer would (MediaPipe's depth of a small figure can jump by a metre
-    // between the two); after a refusal Release, and again, up to four times
+    await until(page, ([id, mesh]) => window.kinetre.studio.people.choice.get(id) === mesh, [other, second], 60000);
+    result.chosen = { person: other, mesh: second };
+    const meshOf = { [other]: second, [result.mainBefore]: first };
+    // Fit then Possess at once, as a dancer would (the server takes them in order; MediaPipe's depth of a
+    // small figure can jump by a metre between the two); after a refusal Release, and again, up to four times
     let s = null;
-    for (let attempt = 0; attempt < 4 && !(s && s.personUsers.every((p) => p.possessing)); attempt++) {
+    const done = (x) => x && x.personUsers.every((p) => p.possessing && p.mesh === meshOf[p.id]);
+    for (let attempt = 0; attempt < 4 && !done(s); attempt++) {
       if (attempt) {
         await page.keyboard.press('r');
-        await until(page, () => window.kinetre.state().personUsers.every((p) => !p.possessing), null, 30000);
+        await until(page, () => window.kinetre.state().personUsers.every((p) => !p.possessing), null, 60000);
       }
       await page.evaluate(() => window.kinetre.studio.panel.setMessage(''));
       await page.keyboard.press('f');
-      await page.waitForTimeout(200);
-      s = await possessBoth(page);
-      log('possess', { attempt, message: s.message, possessing: s.personUsers.map((p) => p.possessing) });
+      s = await possessBoth(page, meshOf);
+      log('possess', { attempt, message: s.message, possessing: s.personUsers.map((p) => [p.id, p.possessing, p.mesh]) });
     }
+    result.mainAfter = s.mainPerson;
     result.message = s.message;
     result.possessed = s.personUsers;
     result.possessors = s.meshes.map((m) => ({ id: m.id, possessors: m.possessors }));
-    if (!s.personUsers.every((p) => p.possessing)) throw new Error(`possess failed: ${s.message}`);
+    if (!done(s)) throw new Error(`possess failed: ${s.message} ${JSON.stringify(s.personUsers)}`);
     await screenshot(page, 'people-meshes.png');
     // per sample: each mesh's vertices and box centre, and each person's hip centre (world metres)
+    // (a sample is kept when both people are in view: the landmarker may miss one for a moment)
     const samples = [];
-    for (let i = 0; i < 12; i++) {
-      samples.push(await page.evaluate(() => {
+    for (let i = 0; i < 60 && samples.length < 12; i++) {
+      const sample = await page.evaluate(() => {
         const k = window.kinetre.state();
         const people = window.kinetre.studio.capture.people;
         return { meshes: k.meshes.map((m) => ({ vertices: m.vertices,
           centre: m.meshBox.min.map((x, j) => (x + m.meshBox.max[j]) / 2) })),
           hips: Object.fromEntries(k.personUsers.map((p) => [p.user, people.frames.get(p.id)?.positions[0] ?? null])) };
-      }));
+      });
+      const hips = Object.values(sample.hips);
+      if (hips.length === 2 && hips.every((h) => h && h.every(Number.isFinite))) samples.push(sample);
       await page.waitForTimeout(400);
     }
     result.spreads = [0, 1].map((i) => spread(samples.map((x) => x.meshes[i].vertices)));

@@ -52,3 +52,42 @@ export async function until(page, predicate, arg, timeout = 60000) {
   const handle = await page.waitForFunction(predicate, arg, { timeout, polling: 250 });
   return handle.jsonValue();
 }
+
+/** Note the capture time (`tSource`, ms since the epoch) and count of the newest transforms block the page
+ * received for each mesh, as `window.shown[meshId] = { t, count }` (idempotent). */
+export const watchTransforms = (page) => page.evaluate(() => {
+  if (window.shown) return;
+  window.shown = {};
+  const studio = window.kinetre.studio;
+  const onTransforms = studio.onTransforms.bind(studio);
+  studio.onTransforms = (block) => {
+    const seen = window.shown[block.meshId];
+    window.shown[block.meshId] = { t: block.tSource, count: (seen?.count ?? 0) + 1 };
+    onTransforms(block);
+  };
+});
+
+/** The page's clock now (ms since the epoch, as the capture times its frames carry). */
+export const pageNow = (page) => page.evaluate(() => performance.timeOrigin + performance.now());
+
+/** Wait until the page has shown, for the default mesh (or `meshId`), a pose solved from frames captured
+ * after `since` (page clock, ms; a release's rest pose counts from when the server let go); its capture time
+ * (watchTransforms first). */
+export async function shownAfter(page, since, meshId = null, timeout = 120000) {
+  const id = meshId ?? await page.evaluate(() => window.kinetre.state().meshId);
+  return until(page, ([m, t]) => (window.shown[m]?.t ?? 0) > t && window.shown[m].t, [id, since], timeout);
+}
+
+/** Wait until the page has shown a pose from frames captured after `since`, then one from a later capture
+ * still: by then every user's newest frame that the server solved with came after `since`. */
+export async function shownSince(page, since, meshId = null, timeout = 120000) {
+  await shownAfter(page, await shownAfter(page, since, meshId, timeout), meshId, timeout);
+}
+
+/** Wait until the page has received `count` more transforms blocks for the default mesh than it had when
+ * this was called (watchTransforms first): a recording holds at least that many solved poses. */
+export async function moreTransforms(page, count, timeout = 120000) {
+  const id = await page.evaluate(() => window.kinetre.state().meshId);
+  const start = await page.evaluate((m) => window.shown[m]?.count ?? 0, id);
+  await until(page, ([m, n]) => (window.shown[m]?.count ?? 0) >= n, [id, start + count], timeout);
+}

@@ -90,7 +90,7 @@ def test_a_real_camera_drives_an_avatars_fingers_and_expressions(data_dir, tmp_p
     woman.crop((0, 0, woman.width, woman.height * 3 // 4)).save(tmp_path / "woman.png")
     video = y4m(tmp_path / "woman.png", tmp_path / "woman.y4m", seconds=1)
     write_rigged_avatar(tmp_path / "hands_face.glb")
-    proc, url = start_server(sample_motion=False, timeout=300)
+    proc, url = start_server(sample_motion=False)
     try:
         r = run_driver("driver_hands.mjs", {"url": url + "/", "query": "?noshadows&nohands&noface&notiles",
                                             "video": str(video), "avatar": str(tmp_path / "hands_face.glb"),

@@ -21,9 +21,10 @@ def free_port() -> int:
         return s.getsockname()[1]
 
 
-def start_server(mesh: str | None = None, nodes: int = 128, sample_motion: bool = False, timeout: float = 120,
+def start_server(mesh: str | None = None, nodes: int = 128, sample_motion: bool = False, timeout: float = 600,
                  **options):
-    """(process, base URL) of a running studio; the caller terminates the process.
+    """(process, base URL) of a running studio; the caller terminates the process. `timeout` is generous: a
+    loaded machine compiling the kernels afresh (an empty cache) takes minutes to start one.
 
     `options` go to run_studio (nats=, room=, token=, remote_scene=).
     """
@@ -46,7 +47,9 @@ def start_server(mesh: str | None = None, nodes: int = 128, sample_motion: bool 
         except httpx.HTTPError:
             time.sleep(0.3)
     proc.kill()
-    raise RuntimeError("studio did not start in time")
+    proc.wait(10)
+    log.seek(0)
+    raise RuntimeError(f"studio did not start in {timeout:.0f} s: {log.read().decode()[-2000:]}")
 
 
 @pytest.fixture(scope="module")
