@@ -8,8 +8,8 @@ import sys
 import time
 
 from ..stopwatch import Stopwatch
-from .common import (EPILOG, SCAN_KEYWORDS, VIDEO_EXTS, UsageError, add_scan_options, frame_range, load_motion,
-                     output_ext, quiet_mediapipe, scan_options)
+from .common import (EPILOG, SCAN_KEYWORDS, VIDEO_EXTS, UsageError, add_cleanup_options, add_scan_options, cleaned,
+                     frame_range, load_motion, output_ext, quiet_mediapipe, scan_options, write_report)
 
 ANIMATE_OUTPUTS = (".glb", ".gltf", ".bvh", ".mp4", ".webm", ".kinetre.jsonl")
 
@@ -61,6 +61,7 @@ def register(sub) -> None:
     p.add_argument("--frames", default=None, metavar="START:END", help="use only these frames of the take")
     p.add_argument("--max-frames", type=int, default=None, help="stop after this many output frames")
     p.add_argument("--no-skeleton", dest="skeleton", action="store_false", help="video: do not draw the skeleton")
+    add_cleanup_options(p)
     p.add_argument("-q", "--quiet", action="store_true", help="no progress or summary")
     add_scan_options(p, segment="plane")
     p.set_defaults(func=cmd_animate)
@@ -124,6 +125,11 @@ def _animate(args, stats: dict | None) -> int:
     take = resample(take, fps)
     if args.max_frames is not None:
         take = take.slice(0, max(1, args.max_frames))
+    before = take
+    if not args.hand and args.map is None:  # a hand or a joined map has no feet on a floor
+        take = cleaned(take, args, say)
+    elif args.contact:
+        raise UsageError("--contact holds a body's feet: not with --hand or --map")
     if not -len(take) <= args.bind_frame < len(take):
         raise UsageError(f"--bind-frame {args.bind_frame} is outside the take's {len(take)} frames")
     if args.hand and not take.tracked[args.bind_frame].any():
@@ -183,12 +189,68 @@ def _animate(args, stats: dict | None) -> int:
         energy = np.array([p.energy for p in poses], dtype=float)
         solved = energy[np.isfinite(energy)]  # held frames (nothing tracked) have no energy
         say(f"solved {len(poses)} frames, median energy {np.median(solved) if solved.size else float('nan'):.3g}")
+    if args.report:
+        write_report(args.report, _report(args, before, take, result, out_ext))
+        say(f"wrote {args.report}")
     lap("write")
     stats.update(vertices=len(mesh.vertices), nodes=rig.graph.node_count, frames=len(take),
                  total_s=time.perf_counter() - t0)
     stages = ", ".join(f"{k[:-2]} {v:.1f}" for k, v in stats.items() if k.endswith("_s") and k != "total_s")
     say(f"wrote {args.output} ({len(take)} frames at {take.fps:g} fps; {stats['total_s']:.1f} s: {stages})")
     return 0
+
+
+def _report(args, before, take, result, out_ext: str) -> dict:
+    """The quality of the driving take (as loaded and as cleaned) and of the output: the possessed mesh's
+    lowest contact regions (the skeleton's contact joints when only a skeleton is written)."""
+    from ..motion.quality import take_quality
+    report = {"motion": args.motion, "output": args.output, "applied": take.applied,
+              "take": take_quality(take).to_dict()}
+    if take is not before:
+        report["take_as_tracked"] = take_quality(before).to_dict()
+    if result.poses:
+        report["mesh_contacts"] = _mesh_contacts(result).to_dict()
+    return report
+
+
+def _mesh_contacts(result):
+    """Quality of the possessed mesh's lowest regions: the connected pieces of the mesh within 3 % of its
+    height of its lowest point as it stands (undeformed: the soles of a figure, a chair's leg ends), each
+    followed by its centroid (in the solve frame's metres)."""
+    import numpy as np
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+
+    from ..deform.skinning import skin_vertices
+    from ..motion.quality import measure
+    mesh, graph, out = result.mesh, result.graph, result.take
+    rest = mesh.vertices
+    height = float(np.ptp(rest[:, 1])) or 1.0
+    is_low = rest[:, 1] <= rest[:, 1].min() + 0.03 * height
+    # vertices split at UV seams are one point: join each to the first vertex at its place
+    _, first, weld = np.unique(np.round(rest / (1e-6 * height)), axis=0, return_index=True, return_inverse=True)
+    seams = np.column_stack([np.arange(len(rest)), first[weld.ravel()]])
+    edges = np.concatenate([mesh.faces[:, [0, 1]], mesh.faces[:, [1, 2]], mesh.faces[:, [2, 0]], seams])
+    edges = edges[is_low[edges].all(axis=1)]
+    n = len(rest)
+    _, label = connected_components(coo_matrix((np.ones(len(edges)), (edges[:, 0], edges[:, 1])), shape=(n, n)),
+                                    directed=False)
+    low = np.flatnonzero(is_low)
+    pieces, counts = np.unique(label[low], return_counts=True)
+    keep = pieces[counts >= max(3, 0.05 * len(low))]  # specks are not contact regions
+    regions = [low[label[low] == k] for k in keep] or [low]
+    names = tuple(f"mesh region {i + 1}" for i in range(len(regions)))
+    idx = np.concatenate(regions)
+    cut = np.cumsum([len(r) for r in regions])[:-1]
+    centroids = np.empty((len(result.poses), len(regions), 3))
+    for i, pose in enumerate(result.poses):
+        v = skin_vertices(mesh.vertices[idx], graph.vertex_nodes[idx], graph.vertex_weights[idx],
+                          pose.node_matrices(graph.nodes))
+        centroids[i] = [part.mean(axis=0) for part in np.split(v, cut)]
+    # the skeleton's joints give the body's height the thresholds scale with
+    both = np.concatenate([out.positions, centroids], axis=1) / result.placement.output_scale
+    j = out.positions.shape[1]
+    return measure(both, out.fps, tuple(range(j, j + len(regions))), names)
 
 
 def _load_motions(args):

@@ -11,7 +11,8 @@ from __future__ import annotations
 import os
 import time
 
-from .common import VIDEO_EXTS, UsageError, frame_range, load_motion, output_ext, quiet_mediapipe
+from .common import (VIDEO_EXTS, UsageError, add_cleanup_options, cleaned, frame_range, load_motion, output_ext,
+                     quiet_mediapipe, write_report)
 
 OUTPUTS = (".glb", ".gltf", ".vrma", ".bvh", ".mp4", ".webm")
 
@@ -38,6 +39,7 @@ def register(sub) -> None:
     p.add_argument("--fps", type=float, default=None, help="output frame rate (default: the take's, at most 30)")
     p.add_argument("--frames", default=None, metavar="START:END", help="use only these frames of the take")
     p.add_argument("--max-frames", type=int, default=None, help="stop after this many output frames")
+    add_cleanup_options(p)
     p.add_argument("-q", "--quiet", action="store_true", help="no summary")
     p.set_defaults(func=cmd_avatar)
 
@@ -87,6 +89,8 @@ def cmd_avatar(args) -> int:
     take = resample(take, args.fps if args.fps is not None else min(take.fps, 30.0))
     if args.max_frames is not None:
         take = take.slice(0, max(1, args.max_frames))
+    before = take
+    take = cleaned(take, args, say)
     plan = plan_retarget(avatar, bonemap)
     motion = own_motion(avatar, take) if own else None
     if motion is None:
@@ -95,6 +99,9 @@ def cmd_avatar(args) -> int:
     else:
         say(f"{args.motion} is on the avatar's own skeleton: played as it is")
     motion, morphs = hands_and_face(avatar, bonemap, plan, motion, take, say)
+    if args.report:
+        write_report(args.report, _report(args, before, take, avatar, bonemap, motion))
+        say(f"wrote {args.report}")
     if args.vmc is not None:
         from ..avatar.fingers import map_fingers
         from ..vmc.send import VmcSender, blend_frames, parse_address, vmc_frames
@@ -132,3 +139,19 @@ def cmd_avatar(args) -> int:
     say(f"wrote {args.output} ({len(take)} frames at {take.fps:g} fps from {args.motion}, "
         f"{time.perf_counter() - t0:.1f} s)")
     return 0
+
+
+def _report(args, before, take, avatar, bonemap, motion) -> dict:
+    """The quality of the driving take (as loaded and as cleaned) and of the avatar's own feet."""
+    from ..motion.quality import measure, take_quality
+    report = {"motion": args.motion, "output": args.output or args.vmc, "applied": take.applied,
+              "take": take_quality(take).to_dict()}
+    if take is not before:
+        report["take_as_tracked"] = take_quality(before).to_dict()
+    feet = [(name, bonemap.joints.get(name, bonemap.joints.get(ankle)))
+            for name, ankle in (("FootLeft", "AnkleLeft"), ("FootRight", "AnkleRight"))]
+    feet = [(name, j) for name, j in feet if j is not None]
+    if feet:
+        report["avatar_feet"] = measure(motion.positions, take.fps, tuple(j for _, j in feet),
+                                        tuple(avatar.joint_names[j] for _, j in feet)).to_dict()
+    return report

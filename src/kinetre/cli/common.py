@@ -57,10 +57,14 @@ def frame_range(spec: str | None) -> slice:
 
 
 def load_motion(path: str, scale: float | None, as_kinect: bool = True):
-    """A motion file (BVH, glTF animation, recorded take) as a Take; `--scale` and `--own-skeleton`
-    apply only where the file has a skeleton of its own."""
+    """A motion file (BVH, glTF animation, recorded take, video) as a Take; `--scale` and `--own-skeleton`
+    apply only where the file has a skeleton of its own. A video is tracked unfiltered: `cleaned` smooths it
+    afterwards without lag."""
     from ..motion.gltf import is_gltf
     from ..motion.source import load_take
+    if path.lower().endswith(VIDEO_EXTS) and scale is None and as_kinect:
+        from ..motion.capture import CaptureSettings, capture_video
+        return capture_video(path, CaptureSettings(smooth=False))
     if is_gltf(path):
         if scale is not None:
             raise UsageError("--scale applies to BVH files only")
@@ -70,6 +74,45 @@ def load_motion(path: str, scale: float | None, as_kinect: bool = True):
     if path.lower().endswith(".bvh"):
         return load_take(path, scale=scale, as_kinect=as_kinect)
     return load_take(path)
+
+
+def add_cleanup_options(p) -> None:
+    """--raw, --contact and --report: how a take is cleaned before it drives, and the quality report."""
+    p.add_argument("--raw", action="store_true",
+                   help="use a camera take as tracked: no smoothing, no foot contact (both on by default)")
+    p.add_argument("--contact", action="store_true",
+                   help="mocap: hold the feet where they stand on the floor (camera takes get it by default)")
+    p.add_argument("--report", default=None, metavar="JSON",
+                   help="write the motion's quality (jitter, foot skate, ground, lag) before and after, as JSON")
+
+
+def cleaned(take, args, say):
+    """The take smoothed and its feet held (kinetre.motion.cleanup) when it is a camera take (unless --raw)
+    or --contact asks (contact only: mocap is smooth already); as it is when it records a cleaning already."""
+    from ..motion.cleanup import CleanupSettings, clean_take
+    from ..motion.take import is_camera_take
+    if args.raw and args.contact:
+        raise UsageError("--raw and --contact contradict each other: give one")
+    camera = is_camera_take(take)
+    if args.raw or take.applied is not None or not (camera or args.contact):
+        return take
+    out = clean_take(take, CleanupSettings(smooth=camera))
+    done = [k for k in ("smoothing", "contact") if k in (out.applied or {})]
+    lag = ((out.applied or {}).get("smoothing") or {}).get("lag_ms")
+    say(f"cleaned the take: {' and '.join(done)}" + (f", lag {lag:.0f} ms" if lag is not None else "")
+        + " (--raw: as tracked)" * camera)
+    return out
+
+
+def write_report(path: str, report: dict) -> None:
+    """Write a quality report as JSON (NaN as null)."""
+    import json
+    try:
+        with open(path, "w", encoding="utf-8") as f:
+            json.dump(report, f, indent=1, allow_nan=False)
+            f.write("\n")
+    except OSError as e:
+        raise UsageError(f"{path}: cannot write the report ({e.strerror})") from None
 
 
 def quiet_mediapipe() -> None:

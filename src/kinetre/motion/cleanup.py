@@ -274,6 +274,16 @@ class LiveCleaner:
         out, _ = place_contacts(self.model, pos[None], targets, weights, self.joints)
         return out[0]
 
+    def describe(self) -> dict:
+        """What this cleaner applies, for a take's `applied` header."""
+        out: dict = {"offline": False}
+        if self.settings.smooth:
+            out["smoothing"] = {"filter": "one-euro", "pass": "causal", "min_cutoff": self.filter.min_cutoff,
+                                "beta": self.filter.beta, "d_cutoff": self.filter.d_cutoff}
+        if self.settings.contact:
+            out["contact"] = {"blend_s": self.settings.blend, "floor": "fitted live to the stance points"}
+        return out
+
     def _fps(self) -> float:
         if len(self._times) < 2:
             return 30.0
