@@ -1,4 +1,5 @@
-# Kinetre: `make studio` runs the live studio, `make test` sets up and runs every test, `make bench` prints JSON.
+# Kinetre: `make studio` runs the live studio, `make test` sets up and runs every test, `make bench` prints JSON
+# and checks benchmarks/targets.json (`make bench-quick`: a one-minute subset).
 SHELL := /bin/bash
 VENV ?= .venv
 PY := $(VENV)/bin/python
@@ -14,7 +15,7 @@ APT_STAMP := /var/lib/kinetre-apt-$(shell echo $(APT_PACKAGES) | md5sum | cut -c
 APT_PACKAGES := libsuitesparse-dev build-essential chromium ffmpeg libegl1 libgl1-mesa-dri festival festvox-kallpc16k festvox-us-slt-hts sox espeak-ng nats-server blender python3-numpy
 export NUMBA_CACHE_DIR := $(CURDIR)/.cache/numba
 
-.PHONY: setup studio test bench web apt python models clean
+.PHONY: setup studio test bench bench-quick web apt python models clean
 
 apt: $(APT_STAMP)
 $(APT_STAMP):
@@ -66,6 +67,10 @@ test: setup
 
 bench: setup
 	OMP_NUM_THREADS=1 NUMBA_NUM_THREADS=1 $(PY) benchmarks/run.py
+
+# a fixed subset of `make bench` in about a minute, the same targets table on stdout (docs/benchmarks.md)
+bench-quick: setup
+	OMP_NUM_THREADS=1 NUMBA_NUM_THREADS=1 $(PY) benchmarks/run.py --quick
 
 clean:
 	rm -rf $(VENV) web/node_modules .cache

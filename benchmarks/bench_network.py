@@ -20,6 +20,7 @@ Prints JSON lines:
 """
 from __future__ import annotations
 
+import argparse
 import asyncio
 import gc
 import json
@@ -352,17 +353,17 @@ def run_loop(coro):
     return uvloop.run(coro)
 
 
-def run_embedded(frames) -> dict:
+def run_embedded(frames, shape) -> dict:
     proc, url = start_server(nodes=NODES)
     try:
         return {"bench": "network_load", "bus": "embedded",
-                **run_loop(load(url, None, frames, {"studio": proc.pid}))}
+                **run_loop(load(url, None, frames, {"studio": proc.pid}, **shape))}
     finally:
         proc.terminate()
         proc.wait(10)
 
 
-def run_nats(frames) -> dict:
+def run_nats(frames, shape) -> dict:
     tmp = Path(tempfile.mkdtemp(prefix="kinetre-bench-net-"))
     with NatsServer() as nats:
         log = open(tmp / "scene.log", "ab")
@@ -378,7 +379,8 @@ def run_nats(frames) -> dict:
             proc, url = start_server(nats=nats.url, room="a", token=ROOMS["a"], remote_scene=True)
             try:
                 pids = {"studio": proc.pid, "scene": scene.pid, "nats-server": nats.proc.pid}
-                return {"bench": "network_load", "bus": "nats", **run_loop(load(url, ROOMS["a"], frames, pids))}
+                return {"bench": "network_load", "bus": "nats", **run_loop(load(url, ROOMS["a"], frames, pids,
+                                                                                 **shape))}
             finally:
                 proc.terminate()
                 proc.wait(10)
@@ -387,7 +389,7 @@ def run_nats(frames) -> dict:
             scene.wait(10)
 
 
-def run_serving_512(frames) -> dict:
+def run_serving_512(frames, shape) -> dict:
     """The embedded studio while a 512-node rig solves: does it keep answering?"""
     proc, url = start_server(nodes=512)
     try:
@@ -401,12 +403,21 @@ def run_serving_512(frames) -> dict:
     return {"bench": "network_serving_512", "captures": 2, "viewers": 20, **{k: result[k] for k in keep}}
 
 
+RUNS = {"embedded": run_embedded, "nats": run_nats, "serving_512": run_serving_512}
+
+
 def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--captures", type=int, default=CAPTURE, help=f"capture clients (default {CAPTURE})")
+    ap.add_argument("--viewers", type=int, default=VIEWERS, help=f"viewers (default {VIEWERS})")
+    ap.add_argument("--seconds", type=float, default=SECONDS, help=f"measured window (default {SECONDS:g})")
+    ap.add_argument("--runs", default=os.environ.get("KINETRE_BENCH_NETWORK_RUNS", ",".join(RUNS)),
+                    help=f"comma-separated subset of {', '.join(RUNS)}")
+    args = ap.parse_args()
     frames = walk_frames()
-    runs = {"embedded": run_embedded, "nats": run_nats, "serving_512": run_serving_512}
-    for name in os.environ.get("KINETRE_BENCH_NETWORK_RUNS", ",".join(runs)).split(","):
-        run = runs[name]
-        print(json.dumps(run(frames)), flush=True)
+    shape = {"captures": args.captures, "viewers": args.viewers, "seconds": args.seconds}
+    for name in args.runs.split(","):
+        print(json.dumps(RUNS[name](frames, shape)), flush=True)
 
 
 if __name__ == "__main__":

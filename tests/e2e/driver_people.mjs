@@ -296,7 +296,13 @@ async function track() {
   const browser = await launchWithCamera(resolve(config.video));
   try {
     const page = await open(browser);
+    // what a user waits for: from pressing Camera until the first person's body is tracked (the tracker's
+    // start-up included, unlike secondsToFind)
+    const clicked = Date.now();
+    const first = until(page, () => window.kinetre.state().personUsers.some((p) => p.tracked >= 12), null, 180000)
+      .then(() => (Date.now() - clicked) / 1000);
     result.secondsToFind = await startCamera(page, config.people ?? 1);
+    result.secondsCameraToFirstTracked = await first;
     await page.keyboard.press('f');
     await page.waitForTimeout(500);
     await page.keyboard.press('p');
