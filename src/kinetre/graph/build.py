@@ -10,8 +10,8 @@ from ..errors import BadGraphError
 from ..mesh.mesh import Mesh
 from .edges import bridge_edges, connect_components, knn_edges
 from .graph import DeformationGraph
-from .pieces import keep_to_pieces, node_pieces, vertex_pieces
-from .sampling import sample_orientation_aware
+from .pieces import keep_to_pieces, node_pieces
+from .sampling import sample_nodes
 from .weights import skinning_weights
 
 
@@ -40,15 +40,15 @@ def build_graph(mesh: Mesh, nodes: int | None = 128, radius: float | None = None
     """
     if nodes is not None and radius is None and nodes < 2:
         raise BadGraphError(f"{mesh.source or 'mesh'}: nodes must be at least 2, got {nodes}")
-    positions, normals, r = sample_orientation_aware(mesh.vertices, mesh.faces, mesh.normals,
-                                                      nodes=nodes, radius=radius, seed=seed)
+    sample = sample_nodes(mesh.vertices, mesh.faces, mesh.normals, nodes=nodes, radius=radius, seed=seed)
+    positions, normals, r = sample.positions, sample.normals, sample.radius
     if len(positions) < 2:
         raise BadGraphError(f"{mesh.source or 'mesh'}: only {len(positions)} node fits at radius {r:.4g}; "
                             f"use a smaller radius")
     edges = knn_edges(positions, normals, k)
     edges, added = connect_components(positions, edges)
     bridges = bridge_edges(len(positions), edges) | added
-    pieces = node_pieces(mesh.vertices, vertex_pieces(mesh.vertices, mesh.faces), positions)
+    pieces = node_pieces(mesh.pieces.of_vertex, mesh.faces, sample.faces)
     graph = DeformationGraph(nodes=positions, normals=normals, edges=edges, bridges=bridges, radius=r,
                              vertex_nodes=np.empty((0, 4), np.int32), vertex_weights=np.empty((0, 4), np.float32),
                              pieces=pieces)
@@ -60,6 +60,5 @@ def with_weights(graph: DeformationGraph, mesh: Mesh) -> DeformationGraph:
     mesh piece it lies on (`pieces.keep_to_pieces`)."""
     idx, w = skinning_weights(mesh.vertices, mesh.normals, graph.nodes, graph.normals, graph.radius)
     if graph.pieces is not None and len(graph.pieces) == graph.node_count:
-        idx, w = keep_to_pieces(idx, w, mesh.vertices, vertex_pieces(mesh.vertices, mesh.faces),
-                                graph.nodes, graph.pieces, mesh.faces)
+        idx, w = keep_to_pieces(idx, w, mesh.vertices, mesh.pieces, graph.nodes, graph.pieces)
     return dataclasses.replace(graph, vertex_nodes=idx, vertex_weights=w)

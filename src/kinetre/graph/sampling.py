@@ -7,6 +7,7 @@ target count N, refined by bisection until the count is within N ± 10 %.
 from __future__ import annotations
 
 import warnings
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -36,6 +37,11 @@ def surface_points(vertices: np.ndarray, faces: np.ndarray, normals: np.ndarray,
     points : (count, 3) float64
     point_normals : (count, 3) float64
     """
+    return _surface_samples(vertices, faces, normals, count, rng, double_areas)[:2]
+
+
+def _surface_samples(vertices, faces, normals, count, rng, double_areas=None):
+    """`surface_points` and the (count,) triangle each point lies on."""
     if double_areas is None:
         double_areas = face_double_areas(vertices, faces)
     cum = np.cumsum(double_areas)
@@ -53,7 +59,7 @@ def surface_points(vertices: np.ndarray, faces: np.ndarray, normals: np.ndarray,
     flat = length < 1e-8  # normals cancel inside the triangle: use the face's own
     n[flat] = np.cross(tri[flat, 1] - tri[flat, 0], tri[flat, 2] - tri[flat, 0])
     n /= np.linalg.norm(n, axis=1)[:, None]
-    return points, n
+    return points, n, chosen
 
 
 @njit(cache=True)
@@ -109,6 +115,25 @@ def dart_throw(points: np.ndarray, normals: np.ndarray, radius: float) -> np.nda
 def sample_orientation_aware(vertices: np.ndarray, faces: np.ndarray, normals: np.ndarray,
                              nodes: int | None = 128, radius: float | None = None, seed: int = 0,
                              candidates_per_node: int = 48) -> tuple[np.ndarray, np.ndarray, float]:
+    """Poisson-disk nodes on a mesh under the orientation-aware distance (Eq. 6): `sample_nodes` without the
+    triangles the nodes lie on, (positions, node_normals, radius)."""
+    s = sample_nodes(vertices, faces, normals, nodes, radius, seed, candidates_per_node)
+    return s.positions, s.normals, s.radius
+
+
+@dataclass(frozen=True)
+class NodeSample:
+    """Graph nodes sampled on a mesh: (N, 3) `positions` and unit `normals`, the (N,) `faces` (rows of the
+    mesh's faces) they lie on, and the sampling `radius` R."""
+
+    positions: np.ndarray
+    normals: np.ndarray
+    faces: np.ndarray
+    radius: float
+
+
+def sample_nodes(vertices: np.ndarray, faces: np.ndarray, normals: np.ndarray, nodes: int | None = 128,
+                 radius: float | None = None, seed: int = 0, candidates_per_node: int = 48) -> NodeSample:
     """Poisson-disk nodes on a mesh under the orientation-aware distance (Eq. 6).
 
     Parameters
@@ -125,10 +150,7 @@ def sample_orientation_aware(vertices: np.ndarray, faces: np.ndarray, normals: n
 
     Returns
     -------
-    positions : (N, 3) float64
-    node_normals : (N, 3) float64
-    radius : float
-        The R used.
+    NodeSample: positions, normals, the triangles they lie on, and the R used.
     """
     rng = np.random.default_rng(seed)
     double_areas = face_double_areas(np.ascontiguousarray(vertices), np.ascontiguousarray(faces))
@@ -142,13 +164,13 @@ def sample_orientation_aware(vertices: np.ndarray, faces: np.ndarray, normals: n
             raise BadGraphError(f"nodes must be at least 2, got {nodes}")
         target = int(nodes)
     count = int(min(max(candidates_per_node * target, 2000), 400_000))
-    points, point_normals = surface_points(vertices, faces, normals, count, rng, double_areas)
+    points, point_normals, on = _surface_samples(vertices, faces, normals, count, rng, double_areas)
     # Shift to the origin so grid cell indices stay small integers.
     lowest = bounding_box(vertices)[0]
     points = points - lowest
     if radius is not None:
         keep = dart_throw(points, point_normals, radius)
-        return points[keep] + lowest, point_normals[keep], float(radius)
+        return NodeSample(points[keep] + lowest, point_normals[keep], on[keep], float(radius))
 
     r = float(np.sqrt(area / target))
     lo, hi = 0.0, np.inf
@@ -169,4 +191,4 @@ def sample_orientation_aware(vertices: np.ndarray, faces: np.ndarray, normals: n
     if abs(len(keep) - target) > 0.1 * target:
         warnings.warn(f"orientation-aware sampling gave {len(keep)} nodes for a target of {target}: "
                       f"the surface does not hold more", stacklevel=2)
-    return points[keep] + lowest, point_normals[keep], float(r)
+    return NodeSample(points[keep] + lowest, point_normals[keep], on[keep], float(r))

@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from functools import cached_property
 
 import numpy as np
 
@@ -40,6 +41,9 @@ class Mesh:
         The trimesh material of the input (kept for glTF export), or None.
     source : str
         The path the mesh was read from ("" when built in memory).
+
+    Derived data (`pieces`) is computed on first use and kept with the mesh, so its arrays must not be
+    changed in place.
     """
 
     vertices: np.ndarray
@@ -70,3 +74,10 @@ class Mesh:
     @property
     def area(self) -> float:
         return float(self.face_areas.sum())
+
+    @cached_property
+    def pieces(self):
+        """`MeshPieces`: the mesh's connected pieces, each vertex's piece, and the inside and contact tests
+        between them, computed once."""
+        from .pieces import MeshPieces  # it builds on this module
+        return MeshPieces(self.vertices, self.faces)

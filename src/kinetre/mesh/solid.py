@@ -6,13 +6,27 @@ from __future__ import annotations
 
 import numpy as np
 
-CHUNK = 1 << 21  # point-triangle pairs per step (a few tens of MB of temporaries)
+from ..jit import njit
 
 
-def _chunks(points: int, triangles: int):
-    step = max(1, CHUNK // max(points, 1))
-    for start in range(0, triangles, step):
-        yield slice(start, min(start + step, triangles))
+@njit(cache=True)
+def _winding(points, vertices, faces, out):
+    for i in range(points.shape[0]):
+        px, py, pz = points[i, 0], points[i, 1], points[i, 2]
+        total = 0.0
+        for f in range(faces.shape[0]):
+            a, b, c = faces[f, 0], faces[f, 1], faces[f, 2]
+            ax, ay, az = vertices[a, 0] - px, vertices[a, 1] - py, vertices[a, 2] - pz
+            bx, by, bz = vertices[b, 0] - px, vertices[b, 1] - py, vertices[b, 2] - pz
+            cx, cy, cz = vertices[c, 0] - px, vertices[c, 1] - py, vertices[c, 2] - pz
+            la = np.sqrt(ax * ax + ay * ay + az * az)
+            lb = np.sqrt(bx * bx + by * by + bz * bz)
+            lc = np.sqrt(cx * cx + cy * cy + cz * cz)
+            num = ax * (by * cz - bz * cy) + ay * (bz * cx - bx * cz) + az * (bx * cy - by * cx)
+            den = (la * lb * lc + (ax * bx + ay * by + az * bz) * lc + (ax * cx + ay * cy + az * cz) * lb
+                   + (bx * cx + by * cy + bz * cz) * la)
+            total += np.arctan2(num, den)
+        out[i] = total / (2.0 * np.pi)
 
 
 def winding_numbers(points: np.ndarray, vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
@@ -20,43 +34,113 @@ def winding_numbers(points: np.ndarray, vertices: np.ndarray, faces: np.ndarray)
     `vertices`: the solid angle they subtend over 4π (Van Oosterom and Strackee's formula per triangle).
     About 1 inside a closed outward-wound surface and 0 outside; an open surface (a plate, a shell with a hole)
     gives the fraction it wraps round the point, so a threshold of 1/2 still tells inside from outside."""
-    points = np.asarray(points, dtype=np.float64).reshape(-1, 3)
-    tri = np.asarray(vertices, dtype=np.float64)[np.asarray(faces, dtype=np.int64).reshape(-1, 3)]
-    total = np.zeros(len(points))
-    for s in _chunks(len(points), len(tri)):
-        a, b, c = (tri[None, s, k] - points[:, None] for k in range(3))
-        la, lb, lc = (np.linalg.norm(x, axis=2) for x in (a, b, c))
-        num = np.einsum("pti,pti->pt", a, np.cross(b, c))
-        den = (la * lb * lc + np.einsum("pti,pti->pt", a, b) * lc + np.einsum("pti,pti->pt", a, c) * lb
-               + np.einsum("pti,pti->pt", b, c) * la)
-        total += np.arctan2(num, den).sum(axis=1)
-    return total / (2.0 * np.pi)
+    points = np.ascontiguousarray(points, dtype=np.float64).reshape(-1, 3)
+    out = np.zeros(len(points))
+    _winding(points, np.ascontiguousarray(vertices, dtype=np.float64),
+             np.ascontiguousarray(np.asarray(faces, dtype=np.int64).reshape(-1, 3)), out)
+    return out
 
 
-def _segment_distances(p: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    ab = b - a
-    s = np.clip(np.einsum("pti,pti->pt", p - a, ab) / np.maximum(np.einsum("pti,pti->pt", ab, ab), 1e-300), 0, 1)
-    return np.linalg.norm(p - a - s[..., None] * ab, axis=2)
+@njit(cache=True, inline="always")
+def _segment(px, py, pz, ax, ay, az, bx, by, bz):
+    """Distance from p to the segment ab."""
+    ux, uy, uz = bx - ax, by - ay, bz - az
+    wx, wy, wz = px - ax, py - ay, pz - az
+    s = (wx * ux + wy * uy + wz * uz) / max(ux * ux + uy * uy + uz * uz, 1e-300)
+    s = min(max(s, 0.0), 1.0)
+    dx, dy, dz = wx - s * ux, wy - s * uy, wz - s * uz
+    return np.sqrt(dx * dx + dy * dy + dz * dz)
+
+
+@njit(cache=True, inline="always")
+def _side(px, py, pz, sx, sy, sz, tx, ty, tz, nx, ny, nz):
+    """((t − s) × (p − s)) · n: ≥ 0 when p is on the inner side of the edge st of a triangle with normal n."""
+    ex, ey, ez = tx - sx, ty - sy, tz - sz
+    wx, wy, wz = px - sx, py - sy, pz - sz
+    return (ey * wz - ez * wy) * nx + (ez * wx - ex * wz) * ny + (ex * wy - ey * wx) * nz
+
+
+@njit(cache=True)
+def _triangle_distance(px, py, pz, vertices, a, b, c):
+    """Distance from p to the triangle abc (a degenerate one: to its edges)."""
+    ax, ay, az = vertices[a, 0], vertices[a, 1], vertices[a, 2]
+    bx, by, bz = vertices[b, 0], vertices[b, 1], vertices[b, 2]
+    cx, cy, cz = vertices[c, 0], vertices[c, 1], vertices[c, 2]
+    ux, uy, uz = bx - ax, by - ay, bz - az
+    vx, vy, vz = cx - ax, cy - ay, cz - az
+    nx, ny, nz = uy * vz - uz * vy, uz * vx - ux * vz, ux * vy - uy * vx
+    nn = nx * nx + ny * ny + nz * nz
+    edges = min(min(_segment(px, py, pz, ax, ay, az, bx, by, bz), _segment(px, py, pz, bx, by, bz, cx, cy, cz)),
+                _segment(px, py, pz, cx, cy, cz, ax, ay, az))
+    if not nn > 0.0:
+        return edges
+    # the foot of the perpendicular lies within the triangle when it is on the inner side of all three edges
+    if (_side(px, py, pz, ax, ay, az, bx, by, bz, nx, ny, nz) < 0.0
+            or _side(px, py, pz, bx, by, bz, cx, cy, cz, nx, ny, nz) < 0.0
+            or _side(px, py, pz, cx, cy, cz, ax, ay, az, nx, ny, nz) < 0.0):
+        return edges
+    plane = abs((px - ax) * nx + (py - ay) * ny + (pz - az) * nz) / np.sqrt(nn)
+    return min(plane, edges)
+
+
+@njit(cache=True)
+def _distances(points, vertices, faces, out):
+    for i in range(points.shape[0]):
+        best = np.inf
+        for f in range(faces.shape[0]):
+            best = min(best, _triangle_distance(points[i, 0], points[i, 1], points[i, 2], vertices,
+                                                faces[f, 0], faces[f, 1], faces[f, 2]))
+        out[i] = best
 
 
 def surface_distances(points: np.ndarray, vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
     """(P,) the distance from every point to the nearest point of the triangles `faces` of `vertices` (inf
     with no triangles)."""
-    points = np.asarray(points, dtype=np.float64).reshape(-1, 3)
-    tri = np.asarray(vertices, dtype=np.float64)[np.asarray(faces, dtype=np.int64).reshape(-1, 3)]
-    best = np.full(len(points), np.inf)
-    for s in _chunks(len(points), len(tri)):
-        a, b, c = (np.broadcast_to(tri[None, s, k], (len(points), s.stop - s.start, 3)) for k in range(3))
-        p = np.broadcast_to(points[:, None], a.shape)
-        n = np.cross(b - a, c - a)
-        nn = np.einsum("pti,pti->pt", n, n)
-        # the foot of the perpendicular lies within the triangle when it is on the inner side of all three edges
-        inner = np.ones(nn.shape, bool)
-        for u, v in ((a, b), (b, c), (c, a)):
-            inner &= np.einsum("pti,pti->pt", np.cross(v - u, p - u), n) >= 0.0
-        plane = np.abs(np.einsum("pti,pti->pt", p - a, n)) / np.sqrt(np.maximum(nn, 1e-300))
-        edges = np.minimum(np.minimum(_segment_distances(p, a, b), _segment_distances(p, b, c)),
-                           _segment_distances(p, c, a))
-        d = np.where(inner & (nn > 0.0), np.minimum(plane, edges), edges)
-        best = np.minimum(best, d.min(axis=1))
+    points = np.ascontiguousarray(points, dtype=np.float64).reshape(-1, 3)
+    out = np.empty(len(points))
+    _distances(points, np.ascontiguousarray(vertices, dtype=np.float64),
+               np.ascontiguousarray(np.asarray(faces, dtype=np.int64).reshape(-1, 3)), out)
+    return out
+
+
+@njit(cache=True)
+def _nearest_gap(points, vertices, faces, reach_lo, reach_hi, limit):
+    plo = np.full(3, np.inf)
+    phi = np.full(3, -np.inf)
+    for i in range(points.shape[0]):
+        for d in range(3):
+            plo[d] = min(plo[d], points[i, d])
+            phi[d] = max(phi[d], points[i, d])
+    best = np.inf
+    tlo = np.empty(3)
+    thi = np.empty(3)
+    for f in range(faces.shape[0]):
+        skip = False
+        gap2 = 0.0
+        for d in range(3):
+            x0, x1, x2 = vertices[faces[f, 0], d], vertices[faces[f, 1], d], vertices[faces[f, 2], d]
+            tlo[d] = min(x0, min(x1, x2))
+            thi[d] = max(x0, max(x1, x2))
+            if tlo[d] > reach_hi[d] or thi[d] < reach_lo[d]:
+                skip = True
+            g = plo[d] - thi[d] if thi[d] < plo[d] else (tlo[d] - phi[d] if tlo[d] > phi[d] else 0.0)
+            gap2 += g * g
+        # a triangle whose box is farther from the points' box than the gap to beat cannot beat it
+        if skip or np.sqrt(gap2) > min(best, limit) * (1.0 + 1e-12):
+            continue
+        for i in range(points.shape[0]):
+            best = min(best, _triangle_distance(points[i, 0], points[i, 1], points[i, 2], vertices,
+                                                faces[f, 0], faces[f, 1], faces[f, 2]))
     return best
+
+
+def nearest_gap(points: np.ndarray, vertices: np.ndarray, faces: np.ndarray, reach_lo: np.ndarray,
+                reach_hi: np.ndarray, limit: float) -> float:
+    """The least distance from `points` to the triangles `faces` of `vertices` whose boxes overlap the box
+    [reach_lo, reach_hi], exact when it is at most `limit` (farther triangles are skipped; inf when none is
+    within)."""
+    return float(_nearest_gap(np.ascontiguousarray(points, dtype=np.float64),
+                              np.ascontiguousarray(vertices, dtype=np.float64),
+                              np.ascontiguousarray(np.asarray(faces, dtype=np.int64).reshape(-1, 3)),
+                              np.asarray(reach_lo, dtype=np.float64), np.asarray(reach_hi, dtype=np.float64),
+                              float(limit)))

@@ -12,9 +12,8 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from ..graph.graph import DeformationGraph
-from ..graph.pieces import contact_hosts, ride_on, vertex_pieces
+from ..graph.pieces import ride_on
 from ..mesh.mesh import Mesh
-from ..mesh.solid import winding_numbers
 from .models import Skeleton
 
 ALONG = 9  # points along a bone tested for lying inside a piece
@@ -29,7 +28,7 @@ def piece_bones(graph: DeformationGraph, skeleton: Skeleton, joint_mask: np.ndar
 
     With `mesh` (the graph's mesh, in the same frame) a point lies inside a piece when the piece's own
     triangles wind round it (generalized winding number ≥ 1/2), and a piece no bone runs through takes the
-    bones of the piece it touches (`pieces.contact_hosts`). Without it, a point lies inside when it is behind
+    bones of the piece it touches (`MeshPieces.contact_hosts`). Without it, a point lies inside when it is behind
     the normal of the piece's nearest node and within the piece's extent, and a piece no bone runs through may
     take any bone."""
     pieces = graph.pieces
@@ -44,18 +43,19 @@ def piece_bones(graph: DeformationGraph, skeleton: Skeleton, joint_mask: np.ndar
     points = pos[bones[:, 0], None] + s[None, :, None] * (pos[bones[:, 1]] - pos[bones[:, 0]])[:, None]  # (B, A, 3)
     points = points.reshape(-1, 3)
     if mesh is not None:
-        vp = vertex_pieces(mesh.vertices, mesh.faces)
-        count = max(int(vp.max()), int(pieces.max())) + 1
-        inside = _inside_triangles(points, mesh, vp, count)
+        solid = mesh.pieces  # computed once per mesh, with its inside and contact tests
+        count = max(solid.count, int(pieces.max()) + 1)
+        inside = np.zeros((count, len(points)), bool)
+        inside[:solid.count] = solid.inside(points)
     else:
-        vp, count = None, int(pieces.max()) + 1
+        solid, count = None, int(pieces.max()) + 1
         inside = _inside_nodes(points, graph, pieces, count)
     through = ok[None] & (inside.reshape(count, len(bones), ALONG).sum(axis=2) >= THROUGH)
     has = through.any(axis=1)
     if not has.any():
         return None
-    if vp is not None:
-        host = contact_hosts(mesh.vertices, mesh.faces, vp, ~has)
+    if solid is not None:
+        host = solid.contact_hosts(~has)
         for p in np.flatnonzero(~has):
             h = ride_on(host, p, has)
             through[p] = through[h] if h >= 0 else ok
@@ -63,24 +63,6 @@ def piece_bones(graph: DeformationGraph, skeleton: Skeleton, joint_mask: np.ndar
         # riding on the nearest other node's piece would follow whatever touches it in the bind pose
         through[~has] = ok
     return through
-
-
-def _inside_triangles(points: np.ndarray, mesh: Mesh, vp: np.ndarray, count: int) -> np.ndarray:
-    """(pieces, P) bool: each point inside each piece by the winding number of the piece's own triangles
-    (only points within the piece's box are tested: none outside it can be inside)."""
-    faces = np.asarray(mesh.faces, dtype=np.int64)
-    face_piece = vp[faces[:, 0]]
-    out = np.zeros((count, len(points)), bool)
-    for p in range(count):
-        mine = faces[face_piece == p]
-        if len(mine) == 0:
-            continue
-        corners = mesh.vertices[mine.ravel()]
-        lo, hi = corners.min(axis=0), corners.max(axis=0)
-        near = np.flatnonzero(((points >= lo) & (points <= hi)).all(axis=1))
-        if len(near):
-            out[p, near] = winding_numbers(points[near], mesh.vertices, mine) >= 0.5
-    return out
 
 
 def _inside_nodes(points: np.ndarray, graph: DeformationGraph, pieces: np.ndarray, count: int) -> np.ndarray:
