@@ -1,6 +1,7 @@
 """The `Mesh` dataclass: a cleaned triangle mesh, the input of every later stage."""
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass, field
 from functools import cached_property
 
@@ -74,6 +75,14 @@ class Mesh:
     @property
     def area(self) -> float:
         return float(self.face_areas.sum())
+
+    def scaled(self, factor: float) -> Mesh:
+        """The mesh scaled by `factor` about the origin (uniform scaling keeps its normals), with what it has
+        computed once (its pieces) carried over."""
+        out = dataclasses.replace(self, vertices=self.vertices * factor)
+        if "pieces" in vars(self):
+            vars(out)["pieces"] = self.pieces.scaled(factor)
+        return out
 
     @cached_property
     def pieces(self):

@@ -62,7 +62,7 @@ class Placement:
 
     def mesh(self, mesh: Mesh) -> Mesh:
         """The mesh in the solve frame (uniform scaling keeps its normals)."""
-        return dataclasses.replace(mesh, vertices=mesh.vertices * self.mesh_scale)
+        return mesh.scaled(self.mesh_scale)
 
     def graph(self, graph: DeformationGraph) -> DeformationGraph:
         """A graph built on the original mesh, in the solve frame (same edges, weights and normals)."""
