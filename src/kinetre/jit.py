@@ -9,6 +9,11 @@ on: the modules that define kernels and, transitively, the Kinetre modules they 
 every kernel recompile once (numba then overwrites its stale index); a change elsewhere (the command line,
 the studio) keeps the cache. Reading the ~100 sources and hashing a third of them costs ~10 ms, once per
 process that loads kernels.
+
+Without NUMBA_CACHE_DIR the kernels are cached in the per-user cache folder (`userdirs.user_cache_dir()`,
+`numba` in it), not beside the sources: an installed package's folder is often read-only, and numba's own
+fallback then would be a folder shared with every other numba program. So a kernel compiles once per user and
+Kinetre version, not in every run.
 """
 from __future__ import annotations
 
@@ -20,10 +25,13 @@ import re
 from pathlib import Path
 
 from numba import njit, prange
-from numba.core import caching, config
+from numba.core import caching, config, event
 from numba.core.compiler_lock import global_compiler_lock
 
-__all__ = ["njit", "prange", "slp_vectorizer", "sources_stamp"]
+from .compile_notice import compiling
+from .userdirs import user_cache_dir
+
+__all__ = ["njit", "prange", "slp_vectorizer", "sources_stamp", "kernel_cache_dir"]
 
 PACKAGE = Path(__file__).resolve().parent
 _IMPL = getattr(caching, "CacheImpl", None) or caching._CacheImpl  # numba < 0.60: _CacheImpl
@@ -102,6 +110,23 @@ def _inside(path: str, package: Path = PACKAGE) -> bool:
         return False
 
 
+def kernel_cache_dir() -> Path:
+    """Where Kinetre's compiled kernels are kept: NUMBA_CACHE_DIR when set, else the per-user cache folder."""
+    return Path(config.CACHE_DIR) if config.CACHE_DIR else user_cache_dir() / "numba"
+
+
+class UserCacheLocator(caching._SourceFileBackedLocatorMixin, caching._CacheLocator):
+    """numba's locator for NUMBA_CACHE_DIR, with `kernel_cache_dir()` in its place."""
+
+    def __init__(self, py_func, py_file):
+        self._py_file = py_file
+        self._lineno = py_func.__code__.co_firstlineno
+        self._cache_path = os.path.join(kernel_cache_dir(), self.get_suitable_cache_subpath(py_file))
+
+    def get_cache_path(self):
+        return self._cache_path
+
+
 class SourceSetLocator(caching._CacheLocator):
     """numba's own choice of cache locator for a Kinetre kernel, with `sources_stamp()` in its stamp."""
 
@@ -124,6 +149,10 @@ class SourceSetLocator(caching._CacheLocator):
     def from_function(cls, py_func, py_file):
         if not _inside(py_file):
             return None
+        if not config.CACHE_DIR:
+            inner = UserCacheLocator.from_function(py_func, py_file)  # None when the folder cannot be made
+            if inner is not None:
+                return cls(inner)
         for other in _IMPL._locator_classes:
             if other is not cls:
                 inner = other.from_function(py_func, py_file)
@@ -134,3 +163,19 @@ class SourceSetLocator(caching._CacheLocator):
 
 if SourceSetLocator not in _IMPL._locator_classes:
     _IMPL._locator_classes.insert(0, SourceSetLocator)
+
+
+class CompileListener(event.Listener):
+    """Tells `compile_notice` when a Kinetre kernel is compiled (numba sends the event on a cache miss only)."""
+
+    def on_start(self, ev):
+        func = getattr(ev.data.get("dispatcher"), "py_func", None)
+        if getattr(func, "__module__", "").startswith(__package__ + "."):
+            compiling()
+
+    def on_end(self, ev):
+        pass
+
+
+if not any(isinstance(x, CompileListener) for x in event._registered.get("numba:compile", ())):
+    event.register("numba:compile", CompileListener())

@@ -60,6 +60,9 @@ def main(argv: list[str] | None = None) -> int:
 def _run(argv: list[str] | None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
+    if not getattr(args, "quiet", False) and sys.stderr.isatty():  # a progress line, as the bars are
+        from ..compile_notice import announce_compiling
+        announce_compiling(lambda line: print(line, file=sys.stderr, flush=True))
     try:
         return int(args.func(args) or 0)
     except KinetreError as e:
