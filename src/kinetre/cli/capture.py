@@ -74,7 +74,7 @@ def cmd_capture(args) -> int:
 
     def clean(skeleton, t, pid):
         if pid not in cleaners:
-            cleaners[pid] = LiveCleaner(KINECT20, cleanup)
+            cleaners[pid] = LiveCleaner(KINECT20, cleanup, viewpoint=np.zeros(3))  # the camera's origin
         pos = cleaners[pid](skeleton.positions, t)
         return Skeleton(KINECT20, pos, np.isfinite(pos).all(axis=1))
 

@@ -21,8 +21,8 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from .contact import (Floor, Stance, StanceSettings, body_height, contact_joints, detect_stance, fit_floor,
-                      joint_speed, place_contacts, runs, NOMINAL_HEIGHT)
+from .contact import (NOMINAL_HEIGHT, Floor, Stance, StanceSettings, contact_joints, detect_stance, fit_floor,
+                      joint_speed, place_contacts, runs)
 from .filters import OneEuroFilter, one_euro_both_ways, tune_one_euro
 from .quality import lag_ms
 from .take import Take, camera_viewpoint
@@ -189,6 +189,11 @@ def clean_take(take: Take, settings: CleanupSettings = CleanupSettings()) -> Tak
 class LiveCleaner:
     """Clean one person's joints frame by frame, causally, with no delay (a camera or the studio's live path).
 
+    `viewpoint`: the camera's position when the joints come from one camera (its depth wanders): stance
+    speeds are then taken across the line of sight, and while a foot is held the body is shifted
+    horizontally so it stays put (the shift is kept through a jump and taken over by the next stance).
+    `floor`: a known floor (a room's); else one is fitted to the stance points seen so far.
+
     >>> import kinetre
     >>> c = LiveCleaner(kinetre.KINECT20)
     >>> c(np.zeros((20, 3)), 0.0).shape
@@ -196,17 +201,21 @@ class LiveCleaner:
     """
 
     def __init__(self, model, settings: CleanupSettings = CleanupSettings(), min_cutoff: float = 1.0,
-                 beta: float = 20.0, floor: Floor | None = None, history: float = 10.0):
+                 beta: float = 20.0, floor: Floor | None = None, history: float = 10.0,
+                 viewpoint: np.ndarray | None = None):
         self.model, self.settings = model, settings
         self.filter = OneEuroFilter(min_cutoff, beta, 2.0)
         self.floor = floor
         self.fixed_floor = floor is not None
         self.history = history
+        self.viewpoint = None if viewpoint is None else np.asarray(viewpoint, dtype=np.float64)
         self.joints: tuple[int, ...] | None = None
-        self._recent: list[np.ndarray] = []        # the last frames (for backward speeds)
+        self.shift = np.zeros(3)                   # horizontal shift of the whole body (camera sources)
+        self._recent: list[np.ndarray] = []        # the last frames, as filtered (for backward speeds)
         self._times: list[float] = []
         self._stance_pts: list[np.ndarray] = []    # stance points seen, for the floor
         self._on: np.ndarray | None = None         # per contact joint: in stance now
+        self._age: np.ndarray | None = None        # frames since it touched down
         self._hold: np.ndarray | None = None       # where each held joint is held
         self._weight: np.ndarray | None = None
         self._heights: list[float] = []
@@ -222,56 +231,74 @@ class LiveCleaner:
                 return pos
             self.joints = contact_joints(self.model, raw[None])
             c = len(self.joints)
-            self._on, self._weight = np.zeros(c, bool), np.zeros(c)
+            self._on, self._weight, self._age = np.zeros(c, bool), np.zeros(c), np.zeros(c, int)
             self._hold = np.full((c, 3), np.nan)
         self._recent.append(pos)
         self._times.append(t)
         fps = self._fps()
-        window = self.settings.stance.window
-        keep = max(2, int(round(window * fps)) + 1)
-        del self._recent[:-keep], self._times[:-keep]
+        st = self.settings.stance
+        del self._recent[:-(max(2, int(round(st.window * fps)) + 1))]
+        del self._times[:-(max(2, int(round(st.window * fps)) + 1))]
         if np.isfinite(pos).all(axis=1).sum() >= 2:
             self._heights.append(float(np.nanmax(pos[:, 1]) - np.nanmin(pos[:, 1])))
-            del self._heights[:-int(self.history * fps)]
+            del self._heights[:-max(1, int(self.history * fps))]
         scale = (float(np.median(self._heights)) if self._heights else NOMINAL_HEIGHT) / NOMINAL_HEIGHT
-        st = self.settings.stance
         track = np.stack(self._recent)
-        floor = self.floor or Floor(float(np.nanmin(pos[list(self.joints), 1])) if
-                                    np.isfinite(pos[list(self.joints), 1]).any() else 0.0)
-        targets = np.full((1, len(self.joints), 3), np.nan)
-        weights = np.zeros((1, len(self.joints)))
+        feet = pos[list(self.joints)]
+        floor = self.floor or Floor(float(np.nanmin(feet[:, 1])) if np.isfinite(feet[:, 1]).any() else 0.0)
+        # the resting level: the low end of the stance points on a fitted floor (the lower foot until then)
+        level = float(np.percentile(floor.above(np.array(self._stance_pts)), 20)) \
+            if self.floor is not None and self._stance_pts else 0.0
         ramp = max(1, int(round(self.settings.blend * fps)))
+        settle = max(1, int(round(st.window * fps)))
         for c, j in enumerate(self.joints):
             p = pos[j]
             if not np.isfinite(p).all():
                 self._on[c], self._weight[c] = False, 0.0
                 continue
-            speed = joint_speed(track[:, j], fps, window, causal=True)[-1]
+            speed = joint_speed(track[:, j], fps, st.window, causal=True, viewpoint=self.viewpoint)[-1]
             speed = np.inf if not np.isfinite(speed) else speed
-            height = float(floor.above(p))
-            if self._on[c]:
-                self._on[c] = not (height > st.height_off * scale or speed > st.speed_off * scale)
+            height = float(floor.above(p)) - level
+            was = self._on[c]
+            if was:
+                # a held foot the tracker now sees well off its hold (the floor was not known yet when it
+                # touched down) lets go, and is held again where it is
+                off = abs(float(self._hold[c, 1] - p[1])) > st.height_on * scale
+                self._on[c] = not (height > st.height_off * scale or speed > st.speed_off * scale or off)
             else:
                 self._on[c] = height < st.height_on * scale and speed < st.speed_on * scale
             if self._on[c]:
-                if self._weight[c] < 1.0 or not np.isfinite(self._hold[c]).all():
-                    self._hold[c] = p  # held where it touched down
+                self._age[c] = self._age[c] + 1 if was else 1
+                here = p + self.shift
+                if self._age[c] <= settle or not np.isfinite(self._hold[c]).all():
+                    # held where it touched down: the mean of its first frames, not one noisy sample
+                    n = self._age[c]
+                    self._hold[c] = here if n == 1 or not np.isfinite(self._hold[c]).all() else \
+                        self._hold[c] + (here - self._hold[c]) / n
                 self._weight[c] = 1.0
                 self._stance_pts.append(p.copy())
-                del self._stance_pts[:-int(self.history * fps)]
+                del self._stance_pts[:-max(1, int(self.history * fps))]
             else:
+                self._age[c] = 0
                 self._weight[c] = max(0.0, self._weight[c] - 1.0 / (ramp + 1))
-            if self._weight[c] > 0:
-                targets[0, c] = p + self._weight[c] * (self._hold[c] - p)
-                weights[0, c] = 1.0
-        if self._on.any():
-            pass
-        elif weights.any():  # every contact off the floor: a jump stays as tracked
-            weights[:] = 0.0
+        if not self._on.any():  # every contact off the floor (a jump): as tracked, the shift kept
             self._weight[:] = 0.0
+        held = self._weight > 0
+        if self.viewpoint is not None and held.any():
+            w = self._weight[held]
+            off = self._hold[held] - pos[list(np.array(self.joints)[held])]
+            self.shift = (w[:, None] * off).sum(axis=0) / w.sum()
+            self.shift[1] = 0.0
+        out = pos + self.shift
+        targets = np.full((1, len(self.joints), 3), np.nan)
+        weights = np.zeros((1, len(self.joints)))
+        for c, j in enumerate(self.joints):
+            if self._weight[c] > 0:
+                targets[0, c] = out[j] + self._weight[c] * (self._hold[c] - out[j])
+                weights[0, c] = 1.0
         if not self.fixed_floor and len(self._stance_pts) >= 10:
             self.floor = fit_floor(np.array(self._stance_pts))
-        out, _ = place_contacts(self.model, pos[None], targets, weights, self.joints)
+        out, _ = place_contacts(self.model, out[None], targets, weights, self.joints)
         return out[0]
 
     def describe(self) -> dict:

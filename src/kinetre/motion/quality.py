@@ -120,14 +120,18 @@ def lag_ms(motion: np.ndarray, reference: np.ndarray, fps: float, most: float = 
 
 def measure(positions: np.ndarray, fps: float, contacts: tuple[int, ...], names: tuple[str, ...] = (),
             stance: Stance | None = None, reference: np.ndarray | None = None,
-            settings: StanceSettings = StanceSettings()) -> Quality:
+            settings: StanceSettings = StanceSettings(), viewpoint: np.ndarray | None = None) -> Quality:
     """The quality of a motion (T, J, 3) metres, +Y up, whose contact points are `contacts` (indices of J).
 
-    `stance` (else detected on the motion) gives the stance frames and floor; `reference` (T, J, 3) the
-    unfiltered motion for the lag."""
+    `stance` gives the stance frames and floor; without it stance is detected on the motion smoothed without
+    lag (one_euro_both_ways; across the line of sight from a camera's `viewpoint`): raw tracker noise would
+    hide the stance it is measured over. `reference` (T, J, 3) is the unfiltered motion, for the lag."""
     pos = np.asarray(positions, dtype=np.float64)
     if stance is None:
-        stance = detect_stance(pos, fps, contacts, settings)
+        tune = tune_one_euro(pos, fps)
+        smooth = one_euro_both_ways(pos, fps, tune.min_cutoff[:, None], tune.beta[:, None], tune.d_cutoff)
+        stance = detect_stance(np.where(np.isfinite(pos), smooth, np.nan), fps, contacts, settings,
+                               viewpoint=viewpoint)
     jit, noise = jitter(pos, fps), jitter(pos, fps, noise_only=True)
     mean = lambda a: float(np.nanmean(a)) if np.isfinite(a).any() else float("nan")  # noqa: E731
     speeds, slides, dist, bob, floating, depth = [], [], [], [], [], []
@@ -165,16 +169,8 @@ def measure(positions: np.ndarray, fps: float, contacts: tuple[int, ...], names:
 
 
 def take_quality(take, stance: Stance | None = None, reference=None) -> Quality:
-    """`measure` of a Take, its contact joints found from its model; `reference` a Take of the same frames.
-
-    Without `stance`, stance is detected on the take smoothed without lag (one_euro_both_ways), across the
-    line of sight for a camera take: raw tracker noise would hide the stance it is measured over."""
+    """`measure` of a Take, its contact joints found from its model; `reference` a Take of the same frames."""
     joints = contact_joints(take.model, take.positions)
     ref = None if reference is None else reference.positions
-    if stance is None:
-        tune = tune_one_euro(take.positions, take.fps)
-        smooth = one_euro_both_ways(take.positions, take.fps, tune.min_cutoff[:, None], tune.beta[:, None],
-                                    tune.d_cutoff)
-        stance = detect_stance(np.where(np.isfinite(take.positions), smooth, np.nan), take.fps, joints,
-                               viewpoint=camera_viewpoint(take))
-    return measure(take.positions, take.fps, joints, tuple(take.model.joints[j] for j in joints), stance, ref)
+    return measure(take.positions, take.fps, joints, tuple(take.model.joints[j] for j in joints), stance, ref,
+                   viewpoint=camera_viewpoint(take))
