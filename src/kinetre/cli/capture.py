@@ -8,7 +8,7 @@ from dataclasses import replace
 
 import numpy as np
 
-from .common import EPILOG, UsageError, output_ext, quiet_mediapipe
+from .common import EPILOG, UsageError, output_ext, prepare_mediapipe
 
 
 def register(sub) -> None:
@@ -44,7 +44,7 @@ def cmd_capture(args) -> int:
     from ..skeleton.models import KINECT20, Skeleton
 
     output_ext(args.output, (".kinetre.jsonl",))
-    quiet_mediapipe()
+    prepare_mediapipe()
     from ..motion.cleanup import CleanupSettings, LiveCleaner, clean_take
     # the tracker's own causal filter only for a raw take that still wants smoothing: cleaning smooths better
     settings = CaptureSettings(fov_degrees=args.fov, smooth=args.raw and not args.no_smooth, people=args.people,

@@ -115,6 +115,13 @@ def write_report(path: str, report: dict) -> None:
         raise UsageError(f"{path}: cannot write the report ({e.strerror})") from None
 
 
+def prepare_mediapipe() -> None:
+    """MediaPipe ready for a command that tracks: its models fetched on first use (saying so), its logging quiet."""
+    from ..motion.fetch_models import ensure_models
+    ensure_models()
+    quiet_mediapipe()
+
+
 def quiet_mediapipe() -> None:
     """Keep a command's stderr for its errors: MediaPipe's C++ side logs through glog/absl there."""
     os.environ.setdefault("GLOG_minloglevel", "2")

@@ -5,6 +5,7 @@ import os
 
 from ..errors import BadFaceError, KinetreError
 from ..face.caricature import NAMES, PRESETS, weights_from
+from .common import prepare_mediapipe
 
 
 def _caricature(args):
@@ -27,8 +28,11 @@ def cmd_face(args) -> int:
 
     if not args.output.lower().endswith((".glb", ".gltf")):
         raise KinetreError(f"{args.output}: the face is written as glTF: use .glb or .gltf")
-    os.environ.setdefault("GLOG_minloglevel", "2")
     caricature = _caricature(args)
+    if args.landmarks is None:  # tracked by FaceLandmarker, not read from a file
+        prepare_mediapipe()
+    else:
+        os.environ.setdefault("GLOG_minloglevel", "2")
     take = face_take(args.input, args.landmarks, max_frames=args.max_frames, turn=args.turn)
     write_face_gltf(args.output, take.frames, take.image, take.mime, take.fps, caricature,
                     blendshapes=take.blendshapes, blendshape_names=take.blendshape_names)

@@ -1,7 +1,7 @@
 """`kinetre record MOTION -o take.kinetre.jsonl`: any motion source (BVH, glTF, take, video) as a take."""
 from __future__ import annotations
 
-from .common import VIDEO_EXTS, load_motion, output_ext, quiet_mediapipe
+from .common import VIDEO_EXTS, load_motion, output_ext, prepare_mediapipe
 
 
 def register(sub) -> None:
@@ -21,7 +21,7 @@ def cmd_record(args) -> int:
 
     output_ext(args.output, (".kinetre.jsonl",))
     if args.source.lower().endswith(VIDEO_EXTS):
-        quiet_mediapipe()
+        prepare_mediapipe()
     take = load_motion(args.source, args.scale, as_kinect=not args.own_skeleton)
     if args.fps is not None:
         take = resample(take, args.fps)

