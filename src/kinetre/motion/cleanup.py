@@ -10,7 +10,8 @@ Offline (`clean_take`, the whole take known):
    below its resting level on the floor is lifted to it. Frames where every contact joint is off the floor
    (a jump) are left as smoothed.
 
-Live (`LiveCleaner`, one frame at a time, no delay): a causal One-Euro filter, stance from backward speeds,
+Live (`LiveCleaner`, one frame at a time, no delay): a causal One-Euro filter tuned per joint from the last
+seconds of frames, stance from backward speeds,
 the floor from the stance points seen so far, and each stance held where it began.
 
 What was applied (and its measured lag) is recorded in the take's `applied` header.
@@ -219,10 +220,18 @@ class LiveCleaner:
         self._hold: np.ndarray | None = None       # where each held joint is held
         self._weight: np.ndarray | None = None
         self._heights: list[float] = []
+        self.tuning, self.retune = 3.0, 1.0      # seconds of frames the filter is tuned on, and how often
+        self.ease = 0.25                         # seconds over which the body shift follows the held feet
+        self.settle = 0.1                        # seconds of stance averaged into where a foot is held
+        self._raw: list[np.ndarray] = []
+        self._raw_t: list[float] = []
+        self._tuned_at = -np.inf
 
     def __call__(self, positions: np.ndarray, t: float) -> np.ndarray:
         """The cleaned (J, 3) joints of a frame taken at `t` seconds (NaN rows stay NaN)."""
         raw = np.asarray(positions, dtype=np.float64)
+        if self.settings.smooth:
+            self._retune(raw, t)
         pos = self.filter(raw, t) if self.settings.smooth else raw.copy()
         if not self.settings.contact:
             return pos
@@ -250,7 +259,6 @@ class LiveCleaner:
         level = float(np.percentile(floor.above(np.array(self._stance_pts)), 20)) \
             if self.floor is not None and self._stance_pts else 0.0
         ramp = max(1, int(round(self.settings.blend * fps)))
-        settle = max(1, int(round(st.window * fps)))
         for c, j in enumerate(self.joints):
             p = pos[j]
             if not np.isfinite(p).all():
@@ -263,16 +271,19 @@ class LiveCleaner:
             if was:
                 # a held foot the tracker now sees well off its hold (the floor was not known yet when it
                 # touched down) lets go, and is held again where it is
-                off = abs(float(self._hold[c, 1] - p[1])) > st.height_on * scale
+                off = abs(float(self._hold[c, 1] - p[1])) > st.height_off * scale
                 self._on[c] = not (height > st.height_off * scale or speed > st.speed_off * scale or off)
+                if off:
+                    self._weight[c] = 0.0
             else:
                 self._on[c] = height < st.height_on * scale and speed < st.speed_on * scale
             if self._on[c]:
-                self._age[c] = self._age[c] + 1 if was else 1
-                here = p + self.shift
-                if self._age[c] <= settle or not np.isfinite(self._hold[c]).all():
-                    # held where it touched down: the mean of its first frames, not one noisy sample
-                    n = self._age[c]
+                # back down while still letting go (a flicker of the tracker): the same hold, continued
+                self._age[c] = self._age[c] + 1 if (was or self._weight[c] > 0) else 1
+                # held at the mean of where it was seen over its first `settle` seconds down, with the body
+                # shift so far: a foot put down again lands where the corrected body puts it
+                n, here = self._age[c], p + self.shift
+                if n <= self.settle * fps or not np.isfinite(self._hold[c]).all():
                     self._hold[c] = here if n == 1 or not np.isfinite(self._hold[c]).all() else \
                         self._hold[c] + (here - self._hold[c]) / n
                 self._weight[c] = 1.0
@@ -287,8 +298,11 @@ class LiveCleaner:
         if self.viewpoint is not None and held.any():
             w = self._weight[held]
             off = self._hold[held] - pos[list(np.array(self.joints)[held])]
-            self.shift = (w[:, None] * off).sum(axis=0) / w.sum()
-            self.shift[1] = 0.0
+            aim = (w[:, None] * off).sum(axis=0) / w.sum()
+            aim[1] = 0.0
+            # eased (`ease` seconds): the held foot stays put by IK anyway, and the body should not
+            # take on the foot's tracking noise
+            self.shift += (1.0 - np.exp(-1.0 / (self.ease * fps))) * (aim - self.shift)
         out = pos + self.shift
         targets = np.full((1, len(self.joints), 3), np.nan)
         weights = np.zeros((1, len(self.joints)))
@@ -301,19 +315,39 @@ class LiveCleaner:
         out, _ = place_contacts(self.model, out[None], targets, weights, self.joints)
         return out[0]
 
+    def _retune(self, raw: np.ndarray, t: float) -> None:
+        """Every `retune` seconds, set the filter's parameters per joint from the last `tuning` seconds of
+        tracked frames (their noise and speed, as offline); the given parameters until then."""
+        self._raw.append(raw)
+        self._raw_t.append(t)
+        while self._raw_t and self._raw_t[0] < t - self.tuning:
+            del self._raw[0], self._raw_t[0]
+        if t - self._tuned_at < self.retune or t - self._raw_t[0] < 0.5 * self.tuning:
+            return
+        tune = tune_one_euro(np.stack(self._raw), self._fps_of(self._raw_t))
+        self.filter.min_cutoff, self.filter.beta = tune.min_cutoff[:, None], tune.beta[:, None]
+        self.filter.d_cutoff = tune.d_cutoff
+        self._tuned_at = t
+
     def describe(self) -> dict:
         """What this cleaner applies, for a take's `applied` header."""
         out: dict = {"offline": False}
         if self.settings.smooth:
-            out["smoothing"] = {"filter": "one-euro", "pass": "causal", "min_cutoff": self.filter.min_cutoff,
-                                "beta": self.filter.beta, "d_cutoff": self.filter.d_cutoff}
+            out["smoothing"] = {"filter": "one-euro", "pass": "causal",
+                                "tuning": f"per joint from the last {self.tuning:g} s of frames, every "
+                                          f"{self.retune:g} s (min_cutoff {self.filter.min_cutoff} Hz, beta "
+                                          f"{self.filter.beta} until then)"}
         if self.settings.contact:
             out["contact"] = {"blend_s": self.settings.blend, "floor": "fitted live to the stance points"}
         return out
 
     def _fps(self) -> float:
-        if len(self._times) < 2:
+        return self._fps_of(self._times)
+
+    @staticmethod
+    def _fps_of(times: list[float]) -> float:
+        if len(times) < 2:
             return 30.0
-        dt = np.diff(self._times)
+        dt = np.diff(times)
         dt = dt[dt > 0]
         return float(1.0 / np.median(dt)) if len(dt) else 30.0
