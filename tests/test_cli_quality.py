@@ -112,3 +112,18 @@ def test_contact_opts_in_for_mocap_and_raw_contradicts_it(capsys, data_dir, tmp_
     code, _, err = run(capsys, "animate", data_dir / "meshes" / "spot.obj", "--motion", walk, "--contact", "--raw",
                        "-o", out_path)
     assert code == 2 and "--raw and --contact" in err
+
+
+def test_camera_capture_cleans_live_and_records_it(capsys, data_dir, tmp_path, monkeypatch):
+    import kinetre.motion.capture as capture
+    opened = capture._open
+    # the dance clip plays the webcam (OpenCV opens a file as it opens a camera)
+    monkeypatch.setattr(capture, "_open", lambda source, label: opened(str(data_dir / "video" / "pose_1.mp4"), label))
+    out_path = tmp_path / "camera.kinetre.jsonl"
+    code, out, err = run(capsys, "capture", "--camera", 0, "--max-frames", 20, "--no-hands", "--no-face", "-o",
+                         out_path)
+    assert code == 0, err
+    take = read_stream(out_path)
+    assert len(take) == 20 and take.applied["offline"] is False
+    assert take.applied["smoothing"]["pass"] == "causal" and "contact" in take.applied
+    assert (take.main_person() >= 0).mean() > 0.9  # the main person's frames are their cleaned crowd entries
