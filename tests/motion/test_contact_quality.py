@@ -203,3 +203,25 @@ def test_contact_joints_of_other_skeletons_are_the_lowest_leaves():
                    float)[None].repeat(3, axis=0)
     assert contact_joints(model, pos) == (1, 2, 3, 4)
     assert contact_joints(K, standing(3)) == FEET
+
+
+def test_room_floor_and_live_meter():
+    from kinetre.motion.cleanup import RoomFloor
+    from kinetre.motion.quality import LiveMeter
+    room = RoomFloor()
+    people = [LiveCleaner(K, viewpoint=np.zeros(3), room=room) for _ in range(2)]
+    raws = [noisy(standing(120, (x, 0.0, -3.0)), seed=k, drift=0.02, noise=0.01) for k, x in enumerate((-0.6, 0.6))]
+    meter = LiveMeter()
+    for i in range(120):
+        for k, (c, raw) in enumerate(zip(people, raws)):
+            out = c(raw[i], i / FPS)
+            if k == 0:
+                held, hold = c.held()
+                stray = np.linalg.norm(out[list(c.joints)] - hold, axis=1)
+                meter.add(raw[i], out, i / FPS, held, stray)
+    # both stand on y = 0: one floor through everyone's feet
+    assert np.abs(room.floor.above(np.array([[-0.6, 0.0, -3.0], [0.6, 0.0, -3.0]]))).max() < 0.02
+    fig = meter.figures()
+    assert fig["frames"] == 90  # the last 3 s
+    assert fig["jitter"] < fig["jitter_tracked"] / 2 and abs(fig["lag_ms"]) <= 1000 / FPS
+    assert fig["held"] > 0.9 and fig["stray_cm"] <= 1.0

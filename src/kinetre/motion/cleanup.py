@@ -187,13 +187,35 @@ def clean_take(take: Take, settings: CleanupSettings = CleanupSettings()) -> Tak
                    applied={"offline": True, "people": len(take.people), **record})
 
 
+class RoomFloor:
+    """One floor for everyone in a room: the stance points every user's `LiveCleaner` reports, the last
+    `history` points kept, a plane fitted to them (`fit_floor`) once there are enough."""
+
+    def __init__(self, history: int = 3000):
+        self.history = history
+        self._points: list[np.ndarray] = []
+        self.floor: Floor | None = None
+        self._fresh = 0
+
+    def add(self, point: np.ndarray) -> None:
+        self._points.append(np.asarray(point, dtype=np.float64).copy())
+        del self._points[:-self.history]
+        self._fresh += 1
+        if len(self._points) >= 10 and (self.floor is None or self._fresh >= 10):
+            self.floor, self._fresh = fit_floor(np.array(self._points)), 0
+
+    def points(self) -> np.ndarray:
+        return np.array(self._points).reshape(-1, 3)
+
+
 class LiveCleaner:
     """Clean one person's joints frame by frame, causally, with no delay (a camera or the studio's live path).
 
     `viewpoint`: the camera's position when the joints come from one camera (its depth wanders): stance
     speeds are then taken across the line of sight, and while a foot is held the body is shifted
     horizontally so it stays put (the shift is kept through a jump and taken over by the next stance).
-    `floor`: a known floor (a room's); else one is fitted to the stance points seen so far.
+    `floor`: a known floor; `room`: a `RoomFloor` shared with the room's other users; else a floor is fitted
+    to this person's stance points seen so far.
 
     >>> import kinetre
     >>> c = LiveCleaner(kinetre.KINECT20)
@@ -203,8 +225,9 @@ class LiveCleaner:
 
     def __init__(self, model, settings: CleanupSettings = CleanupSettings(), min_cutoff: float = 1.0,
                  beta: float = 20.0, floor: Floor | None = None, history: float = 10.0,
-                 viewpoint: np.ndarray | None = None):
+                 viewpoint: np.ndarray | None = None, room: RoomFloor | None = None):
         self.model, self.settings = model, settings
+        self.room = room
         self.filter = OneEuroFilter(min_cutoff, beta, 2.0)
         self.floor = floor
         self.fixed_floor = floor is not None
@@ -254,10 +277,13 @@ class LiveCleaner:
         scale = (float(np.median(self._heights)) if self._heights else NOMINAL_HEIGHT) / NOMINAL_HEIGHT
         track = np.stack(self._recent)
         feet = pos[list(self.joints)]
-        floor = self.floor or Floor(float(np.nanmin(feet[:, 1])) if np.isfinite(feet[:, 1]).any() else 0.0)
+        known = self.floor if self.fixed_floor or self.room is None else self.room.floor
+        known = known if known is not None else self.floor
+        floor = known or Floor(float(np.nanmin(feet[:, 1])) if np.isfinite(feet[:, 1]).any() else 0.0)
+        pts = self.room.points() if self.room is not None and self.room.floor is not None else \
+            np.array(self._stance_pts).reshape(-1, 3)
         # the resting level: the low end of the stance points on a fitted floor (the lower foot until then)
-        level = float(np.percentile(floor.above(np.array(self._stance_pts)), 20)) \
-            if self.floor is not None and self._stance_pts else 0.0
+        level = float(np.percentile(floor.above(pts), 20)) if known is not None and len(pts) else 0.0
         ramp = max(1, int(round(self.settings.blend * fps)))
         for c, j in enumerate(self.joints):
             p = pos[j]
@@ -289,6 +315,8 @@ class LiveCleaner:
                 self._weight[c] = 1.0
                 self._stance_pts.append(p.copy())
                 del self._stance_pts[:-max(1, int(self.history * fps))]
+                if self.room is not None:
+                    self.room.add(p)
             else:
                 self._age[c] = 0
                 self._weight[c] = max(0.0, self._weight[c] - 1.0 / (ramp + 1))
@@ -314,6 +342,13 @@ class LiveCleaner:
             self.floor = fit_floor(np.array(self._stance_pts))
         out, _ = place_contacts(self.model, out[None], targets, weights, self.joints)
         return out[0]
+
+    def held(self) -> tuple[np.ndarray, np.ndarray]:
+        """(C,) which contact joints are held now, and (C, 3) where (NaN where not)."""
+        if self.joints is None:
+            return np.zeros(0, bool), np.zeros((0, 3))
+        on = self._weight >= 1.0
+        return on, np.where(on[:, None], self._hold, np.nan)
 
     def _retune(self, raw: np.ndarray, t: float) -> None:
         """Every `retune` seconds, set the filter's parameters per joint from the last `tuning` seconds of

@@ -174,3 +174,54 @@ def take_quality(take, stance: Stance | None = None, reference=None) -> Quality:
     ref = None if reference is None else reference.positions
     return measure(take.positions, take.fps, joints, tuple(take.model.joints[j] for j in joints), stance, ref,
                    viewpoint=camera_viewpoint(take))
+
+
+class LiveMeter:
+    """A user's live motion quality over the last `seconds` (the studio's meter): jitter as tracked and as
+    cleaned (m/s^2), the lag cleaning adds (ms), the share of frames with a foot held, and how far held feet
+    stray from where they are held (95th percentile, cm).
+
+    >>> m = LiveMeter()
+    >>> m.add(np.zeros((20, 3)), np.zeros((20, 3)), 0.0)
+    >>> m.figures()["frames"]
+    1
+    """
+
+    def __init__(self, seconds: float = 3.0):
+        self.seconds = seconds
+        self._t: list[float] = []
+        self._raw: list[np.ndarray] = []
+        self._clean: list[np.ndarray] = []
+        self._held: list[bool] = []
+        self._stray: list[float] = []
+
+    def add(self, raw: np.ndarray, clean: np.ndarray, t: float, held: np.ndarray | None = None,
+            stray: np.ndarray | None = None) -> None:
+        """One frame: its (J, 3) joints as tracked and as cleaned at `t` seconds; `held` (C,) bool which contact
+        joints are held and `stray` (C,) metres each is from its hold."""
+        self._t.append(float(t))
+        self._raw.append(np.asarray(raw, dtype=np.float64))
+        self._clean.append(np.asarray(clean, dtype=np.float64))
+        on = np.zeros(0, bool) if held is None else np.asarray(held, bool)
+        self._held.append(bool(on.any()))
+        self._stray.append(float(np.max(np.asarray(stray)[on])) if on.any() and stray is not None else np.nan)
+        while self._t and self._t[0] < t - self.seconds:
+            for buf in (self._t, self._raw, self._clean, self._held, self._stray):
+                del buf[0]
+
+    def figures(self) -> dict:
+        n = len(self._t)
+        out = {"frames": n, "jitter_tracked": None, "jitter": None, "lag_ms": None, "held": None, "stray_cm": None}
+        if n < 4:
+            return out
+        dt = np.diff(self._t)
+        fps = float(1.0 / np.median(dt[dt > 0])) if (dt > 0).any() else 30.0
+        raw, clean = np.stack(self._raw), np.stack(self._clean)
+        mean = lambda a: round(float(np.nanmean(a)), 2) if np.isfinite(a).any() else None  # noqa: E731
+        stray = np.array(self._stray)
+        lag = lag_ms(clean, raw, fps, most=0.25) if n >= 8 else float("nan")
+        out.update(jitter_tracked=mean(jitter(raw, fps)), jitter=mean(jitter(clean, fps)),
+                   lag_ms=round(lag, 1) if np.isfinite(lag) else None, held=round(float(np.mean(self._held)), 3),
+                   stray_cm=round(100 * float(np.percentile(stray[np.isfinite(stray)], 95)), 2)
+                   if np.isfinite(stray).any() else None)
+        return out
