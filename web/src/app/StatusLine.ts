@@ -1,6 +1,7 @@
 // The status line at the top of the panel: the connection, the scene (mesh, who drives it, solve time),
 // this page's tracking and its frame rate, in one line of parts.
 import type { SceneState } from '../net/protocol';
+import { qualityMeter } from './QualityMeter';
 
 export interface StatusFacts {
   connected: boolean;
@@ -26,6 +27,10 @@ export function statusLine(f: StatusFacts): string {
       .map((u) => (u.client === f.client ? 'you' : u.client) + (u.hand ? ` (${u.hand} hand)` : ''));
     parts.push(drivers.length ? `driven by ${drivers.join(' + ')}` : 'nobody possesses the mesh');
     if (f.state.solve_ms !== null) parts.push(`solve ${f.state.solve_ms.toFixed(1)} ms`);
+    for (const u of f.state.users) {  // each user's live motion meter
+      const meter = qualityMeter(u.quality);
+      if (meter) parts.push(`${u.client === f.client ? 'your' : `${u.client}'s`} motion: ${meter}`);
+    }
   }
   if (f.camera) parts.push(f.trackingLost ? 'tracking lost: holding the pose' : `tracking ${f.trackedJoints}/20`);
   if (Number.isFinite(f.fps) && f.fps > 0) parts.push(`${f.fps.toFixed(0)} fps`);  // no "Infinity" before two frames

@@ -1,4 +1,5 @@
 // The studio wire format: JSON messages (src/kinetre/studio/protocol.py) and binary transform blocks (src/kinetre/wire/transforms.py).
+import type { MotionQuality } from '../app/QualityMeter';
 
 export type Vec3 = [number, number, number];
 
@@ -22,6 +23,7 @@ export interface UserState {
   hand?: 'left' | 'right' | null; // the hand that possesses (a hand puppet), null for the body
   frames: number;
   attached: number[];
+  quality?: MotionQuality | null; // the live motion meter (app/QualityMeter.ts); absent from older servers
 }
 
 export interface PlacementState {

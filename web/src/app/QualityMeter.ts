@@ -1,0 +1,21 @@
+// A user's live motion quality in a few words, from the figures the server measures over the last seconds
+// of their frames (kinetre.motion.quality.LiveMeter): how much jitter cleaning removed, how often a foot is
+// held on the floor, how far held feet stray, and the lag cleaning adds.
+export interface MotionQuality {
+  frames: number;
+  jitter_tracked: number | null; // m/s², as tracked
+  jitter: number | null; // m/s², as cleaned
+  lag_ms: number | null;
+  held: number | null; // share of frames with a foot held
+  stray_cm: number | null; // 95th percentile of a held foot's distance from its hold
+}
+
+export function qualityMeter(q: MotionQuality | null | undefined): string {
+  if (!q || q.jitter === null || q.jitter_tracked === null) return '';
+  const parts: string[] = [];
+  if (q.jitter_tracked > 0) parts.push(`jitter −${Math.max(0, Math.round(100 * (1 - q.jitter / q.jitter_tracked)))} %`);
+  if (q.held !== null) parts.push(`feet held ${Math.round(100 * q.held)} %`);
+  if (q.held && q.stray_cm !== null) parts.push(`slide ${q.stray_cm.toFixed(1)} cm`);
+  if (q.lag_ms !== null) parts.push(`lag ${Math.round(q.lag_ms)} ms`);
+  return parts.join(', ');
+}
