@@ -9,9 +9,9 @@ import time
 
 from ..stopwatch import Stopwatch
 from .common import (EPILOG, SCAN_KEYWORDS, VIDEO_EXTS, UsageError, add_cleanup_options, add_scan_options, cleaned,
-                     frame_range, load_motion, output_ext, quiet_mediapipe, scan_options, write_report)
+                     frame_range, load_motion, output_ext, prepare_mediapipe, scan_options, write_report)
 
-ANIMATE_OUTPUTS = (".glb", ".gltf", ".bvh", ".mp4", ".webm", ".kinetre.jsonl")
+ANIMATE_OUTPUTS = (".glb", ".gltf", ".fbx", ".bvh", ".mp4", ".webm", ".kinetre.jsonl")
 
 
 def register(sub) -> None:
@@ -63,6 +63,12 @@ def register(sub) -> None:
     p.add_argument("--no-skeleton", dest="skeleton", action="store_false", help="video: do not draw the skeleton")
     add_cleanup_options(p)
     p.add_argument("-q", "--quiet", action="store_true", help="no progress or summary")
+    p.add_argument("--progress", action="store_true",
+                   help="progress as lines on stderr ('kinetre: progress: solving 12/120'), for a program running "
+                        "this one (the Blender add-on)")
+    p.add_argument("--exact-joints", action="store_true",
+                   help="glTF/FBX: every joint gets a parent carrying its stretch, so players skin exactly as "
+                        "Kinetre does (by default only when dropping it would show)")
     add_scan_options(p, segment="plane")
     p.set_defaults(func=cmd_animate)
 
@@ -90,6 +96,9 @@ def _animate(args, stats: dict | None) -> int:
     from ..motion.source import resample
 
     out_ext = output_ext(args.output, ANIMATE_OUTPUTS)
+    if out_ext == ".fbx":
+        from ..blender.fbx import check_fbx
+        check_fbx(args.output)  # before any work: FBX needs Blender
     frames = frame_range(args.frames)
     if args.nodes < 2:
         raise UsageError(f"--nodes must be at least 2, got {args.nodes}")
@@ -147,7 +156,8 @@ def _animate(args, stats: dict | None) -> int:
                                bind_frame=args.bind_frame, solver=args.solver, fit=args.fit, yaw=args.yaw,
                                flip=args.flip, solve=out_ext not in (".bvh", ".kinetre.jsonl"), up=args.up,
                                hang=args.hang)
-    with _bar(3, "rigging", args.quiet) as rigging, _bar(len(take), "solving", args.quiet) as solving:
+    lines = args.progress and not args.quiet
+    with _bar(3, "rigging", args.quiet, lines) as rigging, _bar(len(take), "solving", args.quiet, lines) as solving:
         rigging.unit = "step"
         result = animate(mesh, take, settings, on_frame=lambda i: solving.update(1),
                          on_step=lambda name: rigging.update(1))
@@ -177,13 +187,16 @@ def _animate(args, stats: dict | None) -> int:
         _write_skeleton(args.output, out_ext, out_take)
     else:
         poses = list(result.poses)
-        if out_ext in (".glb", ".gltf"):
+        if out_ext in (".glb", ".gltf", ".fbx"):
+            from ..blender.fbx import gltf_or_fbx
             from ..export.gltf import write_gltf
-            write_gltf(args.output, result.mesh, result.graph, poses, take.fps)
+            with gltf_or_fbx(args.output, take.fps) as path:  # FBX: Blender converts the glTF
+                write_gltf(path, result.mesh, result.graph, poses, take.fps,
+                           stretch=True if args.exact_joints or out_ext == ".fbx" else None)
         else:
             from ..export.video import write_video
             skeletons = [[out_take.frame(i)] for i in range(len(out_take))] if args.skeleton else None
-            with _bar(len(poses), "rendering", args.quiet) as bar:
+            with _bar(len(poses), "rendering", args.quiet, lines) as bar:
                 write_video(args.output, result.mesh, result.graph, poses, take.fps, skeletons=skeletons,
                             on_frame=lambda i: bar.update(1))
         energy = np.array([p.energy for p in poses], dtype=float)
@@ -261,7 +274,7 @@ def _load_motions(args):
     if hands:
         from ..motion.hands import hand_take
     if any(m.lower().endswith(VIDEO_EXTS) for m in motions):
-        quiet_mediapipe()
+        prepare_mediapipe()
     if len(motions) > 1 and args.map is None:
         raise UsageError(f"{len(motions)} --motion given: a --map JSON says how they share the mesh "
                          f"(see docs/joint-maps.md)")
@@ -304,12 +317,34 @@ def _subset(items: list[str] | None):
     return names[0] if len(names) == 1 else names
 
 
-def _bar(total: int, desc: str, quiet: bool):
-    # bars only on a terminal, so piped or captured stderr holds just the error line
+def _bar(total: int, desc: str, quiet: bool, lines: bool = False):
+    # bars only on a terminal, so piped or captured stderr holds just the error line (and asked-for progress)
+    if lines:
+        return _LineBar(total, desc)
     if quiet or not sys.stderr.isatty():
         return _NoBar()
     from tqdm import tqdm
     return tqdm(total=total, desc=desc, unit="frame", file=sys.stderr, leave=False)
+
+
+class _LineBar:
+    """`--progress`: one line per step on stderr, for a program reading it."""
+
+    def __init__(self, total: int, desc: str):
+        self.total, self.desc, self.n, self.unit = total, desc, 0, "frame"
+
+    def update(self, n: int = 1) -> None:
+        self.n += n
+        print(f"kinetre: progress: {self.desc} {self.n}/{self.total}", file=sys.stderr, flush=True)
+
+    def close(self) -> None:
+        pass
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc) -> None:
+        pass
 
 
 class _NoBar:

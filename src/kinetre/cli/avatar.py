@@ -12,9 +12,9 @@ import os
 import time
 
 from .common import (VIDEO_EXTS, UsageError, add_cleanup_options, cleaned, frame_range, load_motion, output_ext,
-                     quiet_mediapipe, write_report)
+                     prepare_mediapipe, write_report)
 
-OUTPUTS = (".glb", ".gltf", ".vrma", ".bvh", ".mp4", ".webm")
+OUTPUTS = (".glb", ".gltf", ".fbx", ".vrma", ".bvh", ".mp4", ".webm")
 
 
 def register(sub) -> None:
@@ -61,6 +61,9 @@ def cmd_avatar(args) -> int:
     if args.vmc is not None and args.output:
         raise UsageError("kinetre avatar: --vmc streams the take instead of writing it; give -o or --vmc")
     out_ext = output_ext(args.output, OUTPUTS) if args.output else None
+    if out_ext == ".fbx":
+        from ..blender.fbx import check_fbx
+        check_fbx(args.output)  # before any work: FBX needs Blender
     if args.map is not None and not os.path.exists(args.map):
         raise UsageError(f"{args.map}: no such bone map")
     avatar = load_avatar(args.avatar)
@@ -76,7 +79,7 @@ def cmd_avatar(args) -> int:
         return 0
 
     if args.motion.lower().endswith(VIDEO_EXTS):
-        quiet_mediapipe()
+        prepare_mediapipe()
     loaded = load_motion(args.motion, args.scale)
     # the avatar's own animation plays as its artist made it; any other motion is retargeted through Kinect-20
     own = args.vmc is None and args.person is None and \
@@ -118,9 +121,11 @@ def cmd_avatar(args) -> int:
             sender.close()
         say(f"sent {sender.sent} VMC frames from {args.motion} ({time.perf_counter() - t0:.1f} s)")
         return 0
-    if out_ext in (".glb", ".gltf"):
+    if out_ext in (".glb", ".gltf", ".fbx"):
         from ..avatar.export import write_avatar_gltf
-        write_avatar_gltf(args.output, avatar, motion, take.fps, morph_weights=morphs)
+        from ..blender.fbx import gltf_or_fbx
+        with gltf_or_fbx(args.output, take.fps) as path:  # FBX: Blender converts the glTF
+            write_avatar_gltf(path, avatar, motion, take.fps, morph_weights=morphs)
     elif out_ext == ".vrma":
         from ..avatar.expressions import vrm_expressions
         from ..avatar.normalized import normalized_motion
