@@ -8,7 +8,7 @@ rig, solved frame by frame interleaved (the same load on each):
     uncut      Rig.solve without a stop (the offline solve)
     cut_<s>ms  every frame yields (`live_stop.Yield`, the flag always set) after its first accepted step past s ms
                of its thread's CPU: the worst case of the studio's rule, in which a newer frame or the frame's
-               lateness (`scene.LATE_S`) always asks it to yield; the next frame goes on from the pose reached
+               lateness (`scene.solve_loop.LATE_S`) always asks it to yield; the next frame goes on from the pose reached
 
 Prints one JSON line per design: thread CPU per frame (median, p99, max), frames that yielded, and E against the
 uncut solve of the same frame (E_design / E_uncut - 1: median, p95, max; they are different trajectories).

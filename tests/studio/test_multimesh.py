@@ -50,7 +50,7 @@ def test_each_user_drives_only_the_mesh_it_possesses(two_meshes, walk):
     async def go():
         scene = Scene(hub, spot, spot_graph, "spot.obj")
         second = scene.add_mesh(horse, horse_graph, "horse.obj")
-        one = scene.mesh_id
+        one = scene.meshes.first.id
         lo1, hi1 = scene.meshes[one].box()
         lo2, hi2 = scene.meshes[second].box()
         assert lo2[0] > hi1[0] + 0.2  # added beside the first, not inside it
@@ -127,7 +127,7 @@ def test_removing_a_mesh_releases_its_possessors_and_bad_ids_are_refused(two_mes
         scene.remove_mesh(second)
         user = scene.state()["users"][0]
         with pytest.raises(MeshError, match="only mesh"):
-            scene.remove_mesh(scene.mesh_id)
+            scene.remove_mesh(scene.meshes.first.id)
         with pytest.raises(MeshError, match="no mesh 2"):
             scene.fit("b", second)
         return user, scene.users["b"]

@@ -303,11 +303,12 @@ def run_two_users(walk, monkeypatch, offset_s):
     (faked, so the periods it learns are exact). Returns the frames each solve took after a second of that
     (joint 0's x tells the frames apart), the newest frames' x, and what the scene does when only the
     first user's frames go on."""
-    import kinetre.studio.scene as scene_module
+    from kinetre.studio.scene import solve_loop, users
     mesh, graph = prepare_mesh(str(data_path("spot.obj")), 32)
     clock = [1000.0]
-    monkeypatch.setattr(scene_module, "time", SimpleNamespace(monotonic=lambda: clock[0],
-                                                               perf_counter=time.perf_counter, time=time.time))
+    for module in (users, solve_loop):  # frame arrivals and the solve loop's deadlines
+        monkeypatch.setattr(module, "time", SimpleNamespace(monotonic=lambda: clock[0],
+                                                            perf_counter=time.perf_counter, time=time.time))
 
     async def go():
         solver = SlowSolver(graph)
@@ -342,7 +343,7 @@ def run_two_users(walk, monkeypatch, offset_s):
         solved = list(solver.solved)  # the solves of walk[40]; each mesh's solve loop may take walk[41] next
         clock[0] += 0.5  # the second user stopped: the first's next frame is not held for it
         send("a", walk[41])
-        later = scene._gather_deadline(clock[0])
+        later = scene.solves.gather_deadline(scene.meshes.first, clock[0])
         task.cancel()
         return solved, round(float(walk[40].positions[0, 0]), 3), later
     return asyncio.run(go())

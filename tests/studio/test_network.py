@@ -29,7 +29,7 @@ from kinetre.studio.meshes import data_path, prepare_mesh
 from kinetre.studio.natsbus import NatsChannels, NetworkError
 from kinetre.studio.protocol import SkeletonFrame, person_client
 from kinetre.studio.scene import Scene
-from kinetre.studio.takelog import read_take_log
+from kinetre.studio.scene.takes import read_take_log
 from kinetre.wire.transforms import unpack_transforms
 
 NODES = 64
@@ -128,7 +128,7 @@ def test_scene_process_solves_what_a_local_scene_solves(network, walk):
         await scene.solve_once()
         scene.receive(Frame("kinetre.skeleton.u", 2, 2.0, b"", SkeletonFrame(2, 2.0, walk[10])))
         await scene.solve_once()
-        return scene.pose.node_matrices(graph.nodes), graph
+        return scene.meshes.first.pose.node_matrices(graph.nodes), graph
 
     expected, graph = asyncio.run(local())
     assert nodes == graph.node_count == mesh["nodeCount"] == matrices.shape[0]

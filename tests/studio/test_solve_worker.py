@@ -11,7 +11,7 @@ from kinetre.studio.channels import Frame, Hub
 from kinetre.studio.meshes import data_path, prepare_mesh
 from kinetre.studio.protocol import SkeletonFrame
 from kinetre.studio.scene import Scene
-from kinetre.studio.solve_worker import InlineSolver, SolverLost, SolveWorker
+from kinetre.studio.scene.solve_worker import InlineSolver, SolverLost, SolveWorker
 
 
 @pytest.fixture(scope="module")
@@ -31,7 +31,7 @@ async def drive(scene, walk, frames=(10, 20, 30)):
     for i, k in enumerate(frames):
         feed(scene, i + 2, walk[k])
         poses.append(await scene.solve_once())
-    return [p.node_matrices(scene.graph.nodes) for p in poses]
+    return [p.node_matrices(scene.meshes.first.graph.nodes) for p in poses]
 
 
 def test_worker_solves_like_the_inline_rig(spot64, walk):
@@ -63,10 +63,10 @@ def test_a_killed_worker_is_replaced_and_the_scene_reattaches(spot64, walk):
             feed(scene, 5, walk[20])
             with pytest.raises(SolverLost):
                 await scene.solve_once()
-            assert scene.rig is None  # nobody is driven until the new worker has the rig
+            assert scene.meshes.first.rig is None  # nobody is driven until the new worker has the rig
             for _ in range(1200):  # the scene re-attaches in the background (a new worker may compile first)
                 await asyncio.sleep(0.05)
-                if scene.rig is not None:
+                if scene.meshes.first.rig is not None:
                     break
             feed(scene, 6, walk[30])
             pose = await scene.solve_once()

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from kinetre.deform.solver import SolverSettings
-from kinetre.studio import solve_worker
+from kinetre.studio.scene import solve_worker
 from kinetre.studio.meshes import data_path, prepare_mesh
 from kinetre.studio.protocol import SkeletonFrame
 from kinetre.studio.placement import Placement
@@ -93,7 +93,7 @@ def test_a_pose_solved_while_a_newer_frame_waits_goes_out_once_the_next_solve_is
 
     async def go():
         scene = Scene(hub, mesh, graph, solver=StubSolver(graph, published))
-        solver = scene.solver
+        solver = scene.meshes.first.solver
 
         def feed(k):
             scene.receive(Frame("kinetre.skeleton.u", k, float(k), b"", SkeletonFrame(k, float(k), walk[k])))
@@ -139,8 +139,9 @@ def test_a_pose_held_for_the_next_solve_is_in_the_take_when_recording_stops(spot
         await asyncio.sleep(0.002)
         scene.receive(Frame("kinetre.skeleton.u", 3, 3.0, b"", SkeletonFrame(3, 3.0, walk[3])))  # during the second solve
         await task
-        assert scene._unpublished is not None  # the second solve's pose is held
-        return scene.stop_recording()
+        first = scene.meshes.first
+        assert first.unpublished is not None  # the second solve's pose is held
+        return scene.stop_recordings()[first.id]
 
     take = asyncio.run(go())
     assert [float(frame.pose.translations[0, 0]) for frame in take] == [1.0, 2.0]

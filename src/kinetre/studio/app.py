@@ -49,7 +49,7 @@ from .natsbus import NatsChannels, probe_nats
 from .player import sample_player
 from .routes import api_routes
 from .scene import Scene
-from .solve_worker import SolveWorker, freeze_heap
+from .scene.solve_worker import SolveWorker, freeze_heap
 from .viewer import Viewer
 from ..vmc.receive import check_listen
 from .vmc_in import VmcUsers

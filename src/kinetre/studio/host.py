@@ -19,9 +19,10 @@ from .channels import Channels, Frame, now_ms
 from .jobs import Job, Jobs, prepare_upload
 from .meshes import NODES, mesh_payload, prepare_upright
 from .player import SAMPLE_CLIENT, MotionPlayer
-from .protocol import ProtocolError, is_person_of, parse_mesh, parse_person, person_client
+from .protocol import (ProtocolError, check_hand, check_subset, is_person_of, parse_mesh, parse_person,
+                       person_client)
 from .recording import Takes, record_take
-from .scene import Scene, check_hand, check_subset
+from .scene import Scene
 from .subjects import client_subject
 
 SCENE_COMMANDS = ("possess", "release", "subset", "place", "fit", "player")  # what the scene itself applies
@@ -86,14 +87,12 @@ def answer_error(hub: Channels, client: str, exc: Exception) -> None:
     reply(hub, client, {"type": "error", "message": message})
 
 
-async def apply(host: SceneHost, hub: Channels, client: str, msg: dict, raw: bytes) -> None:
-    """Give the host one command from `client`; a bad one is answered to the client."""
-    try:
-        if msg["type"] not in SCENE_COMMANDS:
-            raise ProtocolError(f"unknown message type {msg['type']!r}")
-        await host.command(client, msg, raw)
-    except ANSWERED as exc:
-        answer_error(hub, client, exc)
+async def apply(host: SceneHost, client: str, msg: dict, raw: bytes) -> None:
+    """Give the host one command from `client` (the one place scene commands are told apart from anything
+    else a client sends); raises one of ANSWERED on bad input."""
+    if msg["type"] not in SCENE_COMMANDS:
+        raise ProtocolError(f"unknown message type {msg['type']!r}")
+    await host.command(client, msg, raw)
 
 
 class LocalScene:
@@ -103,7 +102,7 @@ class LocalScene:
                  settle: float = 0.0, source: tuple | None = None):
         self.hub, self.scene, self.player, self.nodes = hub, scene, player, nodes
         # by mesh id, (the mesh as loaded, its name): stood on another axis by `set_up`
-        self.sources: dict[int, tuple] = {} if source is None else {scene.mesh_id: source}
+        self.sources: dict[int, tuple] = {} if source is None else {scene.meshes.first.id: source}
         self.settle = settle  # s for the bus to carry the sample's subscription before it plays
         self.jobs = Jobs()
         self.takes = Takes()
@@ -112,7 +111,7 @@ class LocalScene:
     # --- what viewers see ------------------------------------------------------------------------------
     @property
     def mesh_id(self) -> int:
-        return self.scene.mesh_id
+        return self.scene.meshes.first.id
 
     def state(self) -> dict:
         return self.scene.state()
@@ -196,10 +195,10 @@ class LocalScene:
         """Prepare an uploaded mesh in a worker thread; when ready it replaces the default mesh, or with `add`
         joins the scene beside the others."""
         job = self.jobs.new(name)
-        replace = None if add else self.scene.mesh_id
+        replace = None if add else self.mesh_id
 
         def ready(mesh, graph, mesh_name: str, upright, raw) -> None:
-            target = replace if replace in self.scene.meshes else (None if add else self.scene.mesh_id)
+            target = replace if replace in self.scene.meshes else (None if add else self.mesh_id)
             self._mesh_ready(job, mesh, graph, mesh_name, upright, raw, target)
 
         prepare_upload(job, data, self.nodes, asyncio.get_running_loop(), ready, scan_options)
@@ -249,7 +248,7 @@ class LocalScene:
     async def start(self) -> None:
         """Start the solver, the scene's loop and the sample motion (which possesses the mesh)."""
         loop = asyncio.get_running_loop()
-        await self.scene.solver.start()
+        await self.scene.start()
         self.tasks.append(loop.create_task(self.scene.run()))
         if self.player is not None:
             self.tasks.append(loop.create_task(self.player.run()))

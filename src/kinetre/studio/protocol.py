@@ -190,6 +190,22 @@ def parse_mesh(msg: dict) -> int | None:
     return mesh
 
 
+def check_hand(value) -> str | None:
+    """A possessing hand from a client message: null, "left" or "right" (`motion.hands.SIDES`)."""
+    if value is None or value in ("left", "right"):
+        return value
+    raise ProtocolError(f"hand must be null, \"left\" or \"right\", got {value!r}")
+
+
+def check_subset(value) -> str | list | None:
+    """A subset from a client message: null, a name, or a list of names."""
+    if value is None or isinstance(value, str):
+        return value or None
+    if isinstance(value, list) and value and all(isinstance(v, str) for v in value):
+        return value
+    raise ProtocolError(f"subset must be null, a name or a list of names, got {value!r}")
+
+
 def person_client(client: str, person: int | None) -> str:
     """The user name of person `person` in `client`'s camera (no dots: it ends a channel subject)."""
     return client if person is None else f"{client}p{person}"

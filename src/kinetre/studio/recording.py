@@ -59,7 +59,7 @@ async def record_take(scene: Scene, takes: Takes, fps: float = TAKE_FPS) -> dict
     files, meshes = {}, []
     for mesh_id, take in recorded.items():
         m = scene.meshes[mesh_id]
-        suffix = "" if mesh_id == scene.mesh_id else f"-{mesh_id}"
+        suffix = "" if mesh_id == scene.meshes.first.id else f"-{mesh_id}"
         written = await asyncio.to_thread(export_take, folder, m.mesh, m.graph, take, fps,
                                           "take" if not suffix else f"take-mesh{mesh_id}")
         files.update({k + suffix: f"/api/takes/{take_id}/{v}" for k, v in written.items()})

@@ -22,7 +22,7 @@ from pathlib import Path
 from ..errors import KinetreError
 from ..wire.transforms import HEADER
 from .channels import Frame, now_ms
-from .host import LocalScene, answer_error, apply
+from .host import ANSWERED, LocalScene, answer_error, apply
 from .jobs import MAX_UPLOAD, Job, Jobs
 from .meshes import NODES, data_path, prepare_mesh
 from .natsbus import NatsChannels, probe_nats
@@ -31,7 +31,7 @@ from .player import sample_player
 from .protocol import ProtocolError, parse_message
 from .recording import Takes
 from .scene import MeshError, Scene
-from .solve_worker import SolveWorker, freeze_heap
+from .scene.solve_worker import SolveWorker, freeze_heap
 from .subjects import (COMMANDS, FILES, JOBS, MESH_TRANSFORMS, MESHES, STATE, TAKES, TRANSFORMS, UPLOAD,
                        command_subject, is_transforms, last_token, skeleton_subject)
 
@@ -273,7 +273,10 @@ async def serve_scene(mesh_path: str | None, url: str, room: str = "main", token
         elif msg["type"] == "record":
             host.start_recording()
         else:
-            await apply(host, bus, client, msg, frame.data)
+            try:
+                await apply(host, client, msg, frame.data)
+            except ANSWERED as exc:
+                answer_error(bus, client, exc)
 
     async def files(data: bytes) -> bytes:
         what = json.loads(data)
@@ -344,7 +347,8 @@ def run_scene(mesh_path: str | None, url: str, room: str = "main", token: str | 
               sample_motion: bool = False, nkey: str | None = None) -> None:
     """What `kinetre scene` runs: serve until interrupted. Raises KinetreError (NetworkError) on bad input."""
     def started(host: LocalScene) -> None:
-        print(f"Kinetre scene: {host.scene.name} ({host.scene.graph.node_count} nodes) in room {room!r} "
+        first = host.scene.meshes.first
+        print(f"Kinetre scene: {first.name} ({first.graph.node_count} nodes) in room {room!r} "
               f"on {url} (Ctrl+C to stop)", flush=True)
     main = serve_scene(mesh_path, url, room, token, nodes, sample_motion, started, nkey)
     try:  # uvloop, as uvicorn runs the studio (uvicorn[standard] installs it): each message's hops are cheaper

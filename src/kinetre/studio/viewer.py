@@ -16,7 +16,7 @@ from starlette.websockets import WebSocket, WebSocketDisconnect
 
 from .channels import Channels, Frame
 from .fanout import Framing, raw_socket
-from .host import ANSWERED, SCENE_COMMANDS, SceneHost, answer_error, reply
+from .host import ANSWERED, SceneHost, answer_error, apply, reply
 from .protocol import ProtocolError, parse_frame, parse_message, parse_person, person_client, with_client
 from .subjects import (MESH_TRANSFORMS, SKELETON_PREFIX, SKELETONS, STATE, TRANSFORMS, client_subject, is_transforms,
                        skeleton_subject)
@@ -116,10 +116,8 @@ class Viewer:
                     "type": "stats", "client": self.client, "received": stats.received,
                     "malformed": stats.malformed, "last_seq": stats.last_seq,
                     "transforms_sent": stats.transforms_sent, "transforms_skipped": stats.transforms_skipped})
-            elif kind in SCENE_COMMANDS:
-                await self.host.command(self.client, msg, text.encode() if isinstance(text, str) else text)
             else:
-                raise ProtocolError(f"unknown message type {kind!r}")
+                await apply(self.host, self.client, msg, text.encode() if isinstance(text, str) else text)
         except ANSWERED as exc:
             if isinstance(exc, ProtocolError):
                 stats.malformed += 1

@@ -18,11 +18,11 @@ import time
 
 import numpy as np
 
-from ..deform.fast.live_stop import Yield
-from ..deform.pose import GraphPose
-from ..deform.solver import SolverSettings
-from ..errors import KinetreError
-from ..skeleton.rig import attach
+from ...deform.fast.live_stop import Yield
+from ...deform.pose import GraphPose
+from ...deform.solver import SolverSettings
+from ...errors import KinetreError
+from ...skeleton.rig import attach
 
 
 class SolverLost(KinetreError):
@@ -104,10 +104,10 @@ def warm_up(frames: int = 3) -> None:
     """
     from importlib import resources
 
-    from ..graph.build import build_graph
-    from ..mesh.load import load_mesh
-    from ..motion.bvh import load_bvh
-    from ..motion.fit import fit_take
+    from ...graph.build import build_graph
+    from ...mesh.load import load_mesh
+    from ...motion.bvh import load_bvh
+    from ...motion.fit import fit_take
 
     data = resources.files("kinetre") / "data"
     mesh = load_mesh(str(data / "spot.obj"))
