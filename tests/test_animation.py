@@ -74,3 +74,15 @@ def test_a_figure_on_rounded_feet_stays_upright():
     result = kinetre.animate(body, take, kinetre.AnimateSettings(nodes=48, yaw=0.0, solve=False))
     assert result.upright.up == "y"
     np.testing.assert_array_equal(result.mesh.vertices, body.vertices)
+
+
+@pytest.mark.parametrize("bad, message", [({"solver": "local_global"}, "solver must be one of pcg, exact or None"),
+                                          ({"nodes": 1}, "--nodes must be an integer of at least 2"),
+                                          ({"fit": "width"}, "fit must be one of"),
+                                          ({"up": "w"}, "--up must be one of"),
+                                          ({"bind_frame": 1.5}, "--bind-frame must be an integer")])
+def test_a_setting_no_input_can_use_is_refused_when_made(bad, message):
+    """Refused at construction, before any graph is built: a KinetreError (the CLI's exit 2), not a late
+    ValueError."""
+    with pytest.raises(BadSettingsError, match=message):
+        kinetre.AnimateSettings(**bad)

@@ -28,7 +28,7 @@ if TYPE_CHECKING:
     from .mesh.upright import Upright
 
 FITS = (None, "mesh", "height", "length")
-SOLVERS = (None, "pcg", "local_global", "exact")
+SOLVERS = (None, "pcg", "exact")
 UPS = ("auto", "y", "z", "x", "-x", "-y", "-z")  # "auto" and kinetre.mesh.upright.AXES, kept unloaded
 
 
@@ -41,7 +41,7 @@ class AnimateSettings:
     nodes : deformation-graph nodes; seed : their sampling seed
     subset : joint names or subset names that drive (None: every joint)
     bind_frame : the take's frame that is the bind (rest) pose
-    solver : per-frame solver ("pcg", "local_global", "exact"; None: the library's default)
+    solver : per-frame solver ("pcg", "exact"; None: the library's default)
     fit : None (the motion is sized to the mesh), "mesh" (the mesh is resized to the skeleton in the
         output), "height" or "length" (size a non-human source to the mesh by that extent)
     yaw : degrees about +Y the skeleton is turned (people: from the mesh front +Z; other skeletons: added
@@ -65,6 +65,19 @@ class AnimateSettings:
     solve: bool = True
     up: str = "auto"
     hang: bool = True
+
+    def __post_init__(self):
+        """A setting no input can use is refused here, when it is made (BadSettingsError)."""
+        if isinstance(self.nodes, bool) or not isinstance(self.nodes, int) or self.nodes < 2:
+            raise BadSettingsError(f"--nodes must be an integer of at least 2, got {self.nodes!r}")
+        if self.fit not in FITS:
+            raise BadSettingsError(f"fit must be one of mesh, height, length or None, got {self.fit!r}")
+        if self.solver not in SOLVERS:
+            raise BadSettingsError(f"solver must be one of pcg, exact or None, got {self.solver!r}")
+        if self.up not in UPS:
+            raise BadSettingsError(f"--up must be one of {', '.join(UPS)}, got {self.up!r}")
+        if isinstance(self.bind_frame, bool) or not isinstance(self.bind_frame, int):
+            raise BadSettingsError(f"--bind-frame must be an integer, got {self.bind_frame!r}")
 
 
 @dataclass(frozen=True)
@@ -125,16 +138,8 @@ def animate(mesh: Mesh, take: Take, settings: AnimateSettings = AnimateSettings(
     from .motion.in_place import in_place
 
     s = settings
-    if s.nodes < 2:
-        raise BadSettingsError(f"--nodes must be at least 2, got {s.nodes}")
-    if s.fit not in FITS:
-        raise BadSettingsError(f"fit must be one of mesh, height, length or None, got {s.fit!r}")
-    if s.solver not in SOLVERS:
-        raise BadSettingsError(f"solver must be one of pcg, local_global, exact or None, got {s.solver!r}")
     if not -len(take) <= s.bind_frame < len(take):
         raise BadSettingsError(f"--bind-frame {s.bind_frame} is outside the take's {len(take)} frames")
-    if s.up not in UPS:
-        raise BadSettingsError(f"--up must be one of {', '.join(UPS)}, got {s.up!r}")
     step = on_step or (lambda name: None)
     watch = Stopwatch()
     seconds, lap = watch.seconds, watch.lap

@@ -5,6 +5,7 @@ import numpy as np
 import pytest
 
 import kinetre
+from kinetre.errors import KinetreError
 from kinetre.deform.solver import SolverSettings
 
 TIGHT = SolverSettings(method="exact", relative_tolerance=1e-7, max_iterations=30)
@@ -81,8 +82,14 @@ def test_remaining_rule_stops_before_the_confirming_step(walk):
     assert np.median(gaps["tight"]) < 2e-4, gaps
 
 
-def test_settings_are_checked():
-    with pytest.raises(ValueError, match="method"):
-        SolverSettings(method="local_global")
-    with pytest.raises(ValueError, match="preconditioner"):
-        SolverSettings(preconditioner="v_cycle")
+@pytest.mark.parametrize("bad, named", [({"method": "local_global"}, "method"),
+                                         ({"preconditioner": "v_cycle"}, "preconditioner"),
+                                         ({"jump_steps": "lu"}, "jump_steps"),
+                                         ({"max_iterations": 0}, "max_iterations"),
+                                         ({"cg_iterations": 2.5}, "cg_iterations"),
+                                         ({"relative_tolerance": float("nan")}, "relative_tolerance"),
+                                         ({"cg_tolerance": -0.1}, "cg_tolerance"),
+                                         ({"initial_damping": 1e9}, "initial_damping")])
+def test_a_bad_setting_is_refused_with_a_kinetre_error_when_made(bad, named):
+    with pytest.raises(KinetreError, match=named):
+        SolverSettings(**bad)

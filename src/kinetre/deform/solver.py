@@ -11,10 +11,12 @@ rigid motion of the pose onto the targets when that fits better (`rigid_start.py
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, replace
 
 import numpy as np
 
+from ..errors import BadSettingsError
 from .factor import NotPositiveDefinite, ReusedCholesky
 from .fast.coordinate_split import CoordinateSplit
 from .fast.energy import energy_gradient
@@ -79,12 +81,26 @@ class SolverSettings:
 
     def __post_init__(self):
         if self.method not in ("pcg", "exact"):
-            raise ValueError(f"SolverSettings.method must be 'pcg' or 'exact', got {self.method!r}")
+            raise BadSettingsError(f"SolverSettings.method must be 'pcg' or 'exact', got {self.method!r}")
         if self.jump_steps not in ("pcg", "exact"):
-            raise ValueError(f"SolverSettings.jump_steps must be 'pcg' or 'exact', got {self.jump_steps!r}")
+            raise BadSettingsError(f"SolverSettings.jump_steps must be 'pcg' or 'exact', got {self.jump_steps!r}")
         if self.preconditioner not in PRECONDITIONERS:
-            raise ValueError(f"SolverSettings.preconditioner must be one of {sorted(PRECONDITIONERS)}, "
-                             f"got {self.preconditioner!r}")
+            raise BadSettingsError(f"SolverSettings.preconditioner must be one of {sorted(PRECONDITIONERS)}, "
+                                   f"got {self.preconditioner!r}")
+        counts = {"max_iterations": (self.max_iterations, 1), "cg_iterations": (self.cg_iterations, 1),
+                  "backtracks": (self.backtracks, 0), "coarse_regions": (self.coarse_regions, 0)}
+        for name, (value, least) in counts.items():
+            if not isinstance(value, (int, np.integer)) or isinstance(value, bool) or value < least:
+                raise BadSettingsError(f"SolverSettings.{name} must be an integer of at least {least}, got {value!r}")
+        amounts = {"relative_tolerance": self.relative_tolerance, "remaining_tolerance": self.remaining_tolerance,
+                   "cg_tolerance": self.cg_tolerance, "initial_damping": self.initial_damping,
+                   "max_damping": self.max_damping, "jump": self.jump}
+        for name, value in amounts.items():
+            if not isinstance(value, (int, float, np.floating, np.integer)) or not math.isfinite(value) or value < 0:
+                raise BadSettingsError(f"SolverSettings.{name} must be a finite number of at least 0, got {value!r}")
+        if not 0 < self.initial_damping <= self.max_damping:
+            raise BadSettingsError(f"SolverSettings needs 0 < initial_damping <= max_damping, got "
+                                   f"{self.initial_damping!r} and {self.max_damping!r}")
 
 
 @dataclass(frozen=True)

@@ -111,7 +111,7 @@ def _area_moment(vertices, faces):
 
 def bounds(vertices: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """(3,) the lowest and highest coordinate per axis and (3,) the vertices holding them, in one pass
-    (numpy's min and max along the first axis of an (N, 3) array took 16 ms each on 386k vertices)."""
+    (numpy's min and max along the first axis of an (N, 3) array are two strided passes each)."""
     return _bounds(np.ascontiguousarray(vertices, dtype=np.float64))
 
 

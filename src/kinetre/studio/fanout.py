@@ -1,12 +1,12 @@
 """Transform blocks written straight to the viewers' sockets, framed once per block.
 
-Every solved frame goes to every connected page: 120 pages at 40 Hz is ~5,000 WebSocket messages a
-second of 12 kB. Through ASGI each send costs the studio's event loop ~25 µs of CPU (Starlette's send
-wrappers, the server's WebSocket protocol framing and copying the block again for every page) plus a
-wake-up of that page's sender task, so one publish kept the loop busy for ~7 ms (median) and the
-frames of capture clients waited behind it. Here the block is framed once (an unmasked binary frame,
-RFC 6455 §5.2, by `websockets`) and, in the publisher's own call, written to each page's transport that
-can take it now: no task wakes, a send is one `transport.write` (~10 µs, the socket write itself).
+Every solved frame goes to every connected page: a hundred pages at 40 Hz are thousands of WebSocket
+messages a second. Through ASGI each send goes through Starlette's send wrappers, the server's WebSocket
+protocol framing and a copy of the block for every page, plus a wake-up of that page's sender task, so one
+publish kept the loop busy long enough for the frames of capture clients to wait behind it. Here the block
+is framed once (an unmasked binary frame, RFC 6455 §5.2, by `websockets`) and, in the publisher's own call,
+written to each page's transport that can take it now: no task wakes, a send is one `transport.write`
+(figures: benchmarks/bench_network.py).
 
 This needs the server's connection object, which ASGI does not expose: `RawSockets` (middleware) puts
 the server's `send` in the WebSocket's scope, and `raw_socket` accepts it only for uvicorn's sans-I/O

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import asyncio
 import json
+import logging
 import threading
 from typing import Protocol
 
@@ -20,13 +21,15 @@ from .jobs import Job, Jobs, prepare_upload
 from .meshes import NODES, mesh_payload, prepare_upright
 from .player import SAMPLE_CLIENT, MotionPlayer
 from .protocol import (ProtocolError, check_hand, check_subset, is_person_of, parse_mesh, parse_person,
-                       person_client)
+                       parse_place, person_client)
 from .recording import Takes, record_take
 from .scene import Scene
 from .subjects import client_subject
 
+log = logging.getLogger("kinetre.studio")
+
 SCENE_COMMANDS = ("possess", "release", "subset", "place", "fit", "player")  # what the scene itself applies
-ANSWERED = (ProtocolError, KinetreError, TypeError, ValueError)  # bad input: told to the client, never fatal
+ANSWERED = (ProtocolError, KinetreError)  # the client's mistake: told to it, never fatal
 
 
 class SceneHost(Protocol):
@@ -83,7 +86,15 @@ def reply(hub: Channels, client: str, message: dict) -> None:
 
 
 def answer_error(hub: Channels, client: str, exc: Exception) -> None:
-    message = f"bad message: {exc}" if isinstance(exc, ProtocolError) else str(exc)
+    """Tell `client` what was wrong with its message: one of ANSWERED is its mistake, anything else the
+    server's (logged with its traceback; the client only learns that its message was not carried out)."""
+    if isinstance(exc, ProtocolError):
+        message = f"bad message: {exc}"
+    elif isinstance(exc, KinetreError):
+        message = str(exc)
+    else:
+        log.error("a client's message failed in the server", exc_info=exc)
+        message = f"the server failed on this message ({type(exc).__name__}): it is logged there"
     reply(hub, client, {"type": "error", "message": message})
 
 
@@ -140,10 +151,7 @@ class LocalScene:
         elif kind == "subset":
             await scene.set_subset(client, check_subset(msg.get("subset")))
         elif kind == "place":
-            pos = msg.get("position", [0, 0, 0])
-            if not isinstance(pos, list):
-                raise ProtocolError("position must be a list of 3 numbers")
-            scene.place(float(msg.get("scale", 1.0)), pos, float(msg.get("yaw", 0.0)), mesh)
+            scene.place(*parse_place(msg), mesh)
         elif kind == "fit":
             scene.fit(client, mesh)
         elif kind == "player":

@@ -190,6 +190,17 @@ def parse_mesh(msg: dict) -> int | None:
     return mesh
 
 
+def parse_place(msg: dict) -> tuple[float, list, float]:
+    """A "place" message's (scale, position, yaw); scale 1, the origin and yaw 0 where it names none."""
+    scale, position, yaw = msg.get("scale", 1.0), msg.get("position", [0, 0, 0]), msg.get("yaw", 0.0)
+    if not isinstance(position, list) or len(position) != 3 or not all(type(v) in _NUMBER_TYPES for v in position):
+        raise ProtocolError(f"position must be a list of 3 numbers, got {position!r}")
+    for name, value in (("scale", scale), ("yaw", yaw)):
+        if type(value) not in _NUMBER_TYPES:
+            raise ProtocolError(f"{name} must be a number, got {value!r}")
+    return float(scale), position, float(yaw)
+
+
 def check_hand(value) -> str | None:
     """A possessing hand from a client message: null, "left" or "right" (`motion.hands.SIDES`)."""
     if value is None or value in ("left", "right"):

@@ -22,7 +22,7 @@ from pathlib import Path
 from ..errors import KinetreError
 from ..wire.transforms import HEADER
 from .channels import Frame, now_ms
-from .host import ANSWERED, LocalScene, answer_error, apply
+from .host import LocalScene, answer_error, apply
 from .jobs import MAX_UPLOAD, Job, Jobs
 from .meshes import NODES, data_path, prepare_mesh
 from .natsbus import NatsChannels, probe_nats
@@ -275,7 +275,7 @@ async def serve_scene(mesh_path: str | None, url: str, room: str = "main", token
         else:
             try:
                 await apply(host, client, msg, frame.data)
-            except ANSWERED as exc:
+            except Exception as exc:  # the client's mistake, or the scene's (logged): the scene goes on
                 answer_error(bus, client, exc)
 
     async def files(data: bytes) -> bytes:

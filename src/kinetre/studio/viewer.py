@@ -16,7 +16,7 @@ from starlette.websockets import WebSocket, WebSocketDisconnect
 
 from .channels import Channels, Frame
 from .fanout import Framing, raw_socket
-from .host import ANSWERED, SceneHost, answer_error, apply, reply
+from .host import SceneHost, answer_error, apply, reply
 from .protocol import ProtocolError, parse_frame, parse_message, parse_person, person_client, with_client
 from .subjects import (MESH_TRANSFORMS, SKELETON_PREFIX, SKELETONS, STATE, TRANSFORMS, client_subject, is_transforms,
                        skeleton_subject)
@@ -118,7 +118,7 @@ class Viewer:
                     "transforms_sent": stats.transforms_sent, "transforms_skipped": stats.transforms_skipped})
             else:
                 await apply(self.host, self.client, msg, text.encode() if isinstance(text, str) else text)
-        except ANSWERED as exc:
+        except Exception as exc:  # the client's mistake (ANSWERED) or the server's: the connection goes on
             if isinstance(exc, ProtocolError):
                 stats.malformed += 1
             answer_error(self.hub, self.client, exc)

@@ -8,10 +8,8 @@ Grammar: a verb ("possess" | "attach" → possess, "release" | "let go" → rele
 [the] and a body part; or a bare body part; or "reset" alone (the page resets its physics scene).
 Out-of-grammar speech is rejected with a garbage model in the same search: a loop of phone "words"
 competes with the commands, so "what time is it" is absorbed by the loop instead of being forced onto
-the nearest command. Measured on festival speech
-(benchmarks/bench_voice.py): 72/72 commands, 0/20 out-of-grammar sentences accepted; without the loop
-14 of those 20 come back as commands. The price is noise robustness (white noise at 20 dB SNR: 57/64
-right, 60/64 without the loop) and ~4x the decode time (~95 ms CPU per utterance; 10-25 ms without the loop).
+the nearest command. Without the loop most out-of-grammar sentences come back as commands; the price
+is some noise robustness and a longer decode (figures on festival speech: benchmarks/bench_voice.py).
 
     >>> rec = Recogniser()                                              # doctest: +SKIP
     >>> rec.recognise(open("possess.wav", "rb").read())                 # doctest: +SKIP
@@ -195,8 +193,8 @@ class Recogniser:
         self.subsets = tuple(subset_names() if subsets is None else subsets)
         self.sentences = command_sentences(self.subsets)
         model = get_model_path()
-        # No language model and no 130k-word dictionary: the grammar's ~20 words are added by hand,
-        # which cuts loading from ~400 to ~60 ms CPU (so `recognise` without a Recogniser stays usable).
+        # No language model and no full dictionary: the grammar's few words are added by hand, which
+        # makes loading quick enough for `recognise` without a Recogniser to stay usable.
         self._decoder = Decoder(hmm=os.path.join(model, "en-us", "en-us"), dict=None, lm=None,
                                 samprate=SAMPLE_RATE, logfn=os.devnull)
         words = {w for text in self.sentences for w in text.split()}

@@ -75,8 +75,8 @@ def yielding(newer: np.ndarray) -> Yield:
     """Rig.solve's `stop` for a live solve: a newer frame waits (`newer[0]` set, a uint8 view of the byte the
     scene sets) and this one has had its share of CPU. The frame then ends after its current Gauss-Newton
     step (PCG, read inside the numba loop; or an exact jump step) and publishes the pose reached, E
-    lowered; the next frame goes on from it. Most frames (~4 ms at 253 nodes) never yield; the long ones
-    (10 creeping steps, a jump) go on over the next frames instead of making the newest frame wait."""
+    lowered; the next frame goes on from it. Most frames converge before they would yield; the long ones
+    (many creeping steps, a jump) go on over the next frames instead of making the newest frame wait."""
     return Yield.after_share(newer, YIELD_AFTER_S)
 
 
@@ -89,9 +89,8 @@ def solve_yielding(rig, skeletons, newer: np.ndarray) -> tuple[GraphPose, bool]:
 
 def freeze_heap() -> None:
     """Move everything allocated so far (modules, numba's compiled kernels, the mesh) out of the garbage
-    collector's reach, so that a full collection scans only what was allocated since: in the loaded studio
-    the full collections took 50-70 ms otherwise, an event loop stalled that long puts every viewer's
-    frame in the latency tail. Called once a process has started up."""
+    collector's reach, so that a full collection scans only what was allocated since: a full collection of
+    the loaded studio's heap stalls the event loop, which puts every viewer's frame in the latency tail. Called once a process has started up."""
     gc.collect()
     gc.freeze()
 
@@ -204,7 +203,8 @@ class SolveWorker:
 
     async def _readable(self) -> None:
         """Wait for the reply on the event loop itself: a thread blocked in recv() would then need the GIL
-        from the busy serving thread, adding up to a switch interval (5 ms) per hop to every solve."""
+        from the busy serving thread, adding up to a switch interval (`sys.getswitchinterval`) per hop to every
+        solve."""
         loop = asyncio.get_running_loop()
         ready = loop.create_future()
         fd = self._conn.fileno()
