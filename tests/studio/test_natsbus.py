@@ -264,7 +264,7 @@ def test_scene_parses_a_users_frames_only_when_needed(walk):
         assert user.frames == 3 and user.seq == 3
         np.testing.assert_allclose(user.latest.positions, walk[5].positions, atol=1e-9)
         send(2, walk[9])  # late: dropped before anything is kept
-        assert scene.late == 1 and user.raw is None
+        assert scene.users.late == 1 and user.raw is None
         send(4, walk[10])
         scene.fit("u")
         await scene.possess("u")
