@@ -18,7 +18,7 @@ APT_PACKAGES := libsuitesparse-dev build-essential chromium ffmpeg libegl1 libgl
 # $XDG_CACHE_HOME/kinetre/numba), the one a user's own `kinetre` runs read, so `kernels` warms theirs too.
 KERNEL_STAMP := $(VENV)/.kinetre-kernels
 
-.PHONY: setup studio test bench bench-quick web apt python models kernels dist clean
+.PHONY: setup studio test check bench bench-quick web apt python models kernels dist clean
 
 apt: $(APT_STAMP)
 $(APT_STAMP):
@@ -83,6 +83,10 @@ studio: setup
 
 test: setup
 	$(PY) -m pytest -q tests
+
+# the quick tier: unit and numeric tests, no browser, studio server, NATS or Blender (see tests/conftest.py)
+check: python models
+	$(PY) -m pytest -q -m "not slow" tests
 
 bench: setup
 	OMP_NUM_THREADS=1 NUMBA_NUM_THREADS=1 $(PY) benchmarks/run.py

@@ -10,6 +10,20 @@ from synthetic import body_mesh
 
 DATA = (Path(__file__).resolve().parents[1] / ".." / "shared" / "data").resolve()
 
+# The quick tier (`make check`: pytest -m "not slow") is the unit and numeric tests. A test is `slow` when it
+# needs a running service: a browser (tests/e2e), a studio server process, NATS, Blender, ffmpeg or the
+# command line in a subprocess. Such a test either uses one of these fixtures (each starts a service) or is
+# marked `slow` itself (`pytestmark = pytest.mark.slow` for a whole module).
+SERVICE_FIXTURES = frozenset({"studio", "studio_page", "loaded_studio", "creature_studio", "horse_studio",
+                              "fresh_studio", "vmc_studio", "nats", "network", "rooms", "probed"})
+
+
+def pytest_collection_modifyitems(config, items):
+    e2e = Path(__file__).resolve().parent / "e2e"
+    for item in items:
+        if e2e in Path(item.fspath).resolve().parents or SERVICE_FIXTURES & set(item.fixturenames):
+            item.add_marker(pytest.mark.slow)
+
 
 @pytest.fixture(scope="session")
 def data_dir() -> Path:

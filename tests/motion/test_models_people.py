@@ -28,15 +28,19 @@ def test_a_missing_model_names_the_make_target(tmp_path):
         model_path("nope.task")
 
 
-def test_the_right_bytes_pass_the_digest():
-    digest_of_empty = "e3b0c44298fc1c149afbf4c8996fb92427ae41e4649b934ca495991b7852b855"
+def test_the_right_bytes_pass_the_digest_and_one_byte_more_does_not(monkeypatch, tmp_path):
+    """A model file whose bytes hash to the published digest is the model, wherever it lies; a byte more is
+    not (with a stand-in digest: the real models are tens of megabytes)."""
     from kinetre.motion import models
+    data = b"a stand-in for the model's bytes"
     saved = models.MODELS["face_landmarker.task"]
-    models.MODELS["face_landmarker.task"] = models.ModelFile(saved.name, digest_of_empty, saved.sources)
-    try:
-        check_digest("face_landmarker.task", b"", "x")
-    finally:
-        models.MODELS["face_landmarker.task"] = saved
+    monkeypatch.setitem(models.MODELS, "face_landmarker.task",
+                        models.ModelFile(saved.name, models.sha256_of(data), saved.sources))
+    assert check_digest("face_landmarker.task", data, "x") is None
+    (tmp_path / "face_landmarker.task").write_bytes(data)
+    assert model_path("face_landmarker.task", dirs=(tmp_path,)) == tmp_path / "face_landmarker.task"
+    with pytest.raises(BadModelError, match="x: sha256"):
+        check_digest("face_landmarker.task", data + b"!", "x")
 
 
 def test_ids_follow_people_who_cross_and_come_back_within_memory():

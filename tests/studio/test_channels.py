@@ -57,16 +57,20 @@ def test_subscribers_are_independent_and_closed_ones_stop_receiving():
     assert after_close is None and subs == 1
 
 
-def test_next_times_out_without_frames():
+def test_next_times_out_without_frames_and_a_frame_ends_the_wait():
+    """With nothing published, `next` gives None once its timeout passes; a frame published meanwhile is
+    returned instead (a generous timeout: the frame, not the clock, ends that wait)."""
     async def run():
-        sub = Hub().subscribe("x")
-        loop = asyncio.get_running_loop()
-        start = loop.time()
-        frame = await sub.next(timeout=0.2)
-        return frame, loop.time() - start
+        hub = Hub()
+        sub = hub.subscribe("x")
+        nothing = await sub.next(timeout=0.05)
+        asyncio.get_running_loop().call_soon(hub.publish, Frame("x", 1, 0.0, b"f"))
+        frame = await sub.next(timeout=60)
+        return nothing, frame
 
-    frame, waited = asyncio.run(run())
-    assert frame is None and 0.15 < waited < 2.0
+    nothing, frame = asyncio.run(run())
+    assert nothing is None
+    assert frame is not None and frame.seq == 1 and frame.data == b"f"
 
 
 def test_urgent_subjects_jump_the_line():

@@ -98,12 +98,17 @@ def answer_error(hub: Channels, client: str, exc: Exception) -> None:
     reply(hub, client, {"type": "error", "message": message})
 
 
-async def apply(host: SceneHost, client: str, msg: dict, raw: bytes) -> None:
-    """Give the host one command from `client` (the one place scene commands are told apart from anything
-    else a client sends); raises one of ANSWERED on bad input."""
-    if msg["type"] not in SCENE_COMMANDS:
-        raise ProtocolError(f"unknown message type {msg['type']!r}")
-    await host.command(client, msg, raw)
+async def apply(host: SceneHost, hub: Channels, client: str, msg: dict, raw: bytes) -> Exception | None:
+    """Give the host one command from `client`: the one place scene commands are told apart from anything
+    else a client sends, and their failures answered (see `answer_error`). The failure, or None."""
+    try:
+        if msg["type"] not in SCENE_COMMANDS:
+            raise ProtocolError(f"unknown message type {msg['type']!r}")
+        await host.command(client, msg, raw)
+    except Exception as exc:  # the client's mistake, or the server's (logged): the connection goes on
+        answer_error(hub, client, exc)
+        return exc
+    return None
 
 
 class LocalScene:

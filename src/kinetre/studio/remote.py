@@ -273,10 +273,7 @@ async def serve_scene(mesh_path: str | None, url: str, room: str = "main", token
         elif msg["type"] == "record":
             host.start_recording()
         else:
-            try:
-                await apply(host, client, msg, frame.data)
-            except Exception as exc:  # the client's mistake, or the scene's (logged): the scene goes on
-                answer_error(bus, client, exc)
+            await apply(host, bus, client, msg, frame.data)
 
     async def files(data: bytes) -> bytes:
         what = json.loads(data)

@@ -119,7 +119,7 @@ def api_routes(host: SceneHost, hub: Channels, connected: Callable[[str], bool])
         data = await request.body()
         from .voice import Recogniser, recognise
         try:
-            # one decoder for the studio's lifetime: loading it costs ~50 ms per utterance otherwise
+            # one decoder for the studio's lifetime: loading it again for every utterance would add to each one
             if voice_decoder.get("recogniser") is None:
                 voice_decoder["recogniser"] = await asyncio.to_thread(Recogniser)
         except KinetreError as exc:  # pocketsphinx missing: the page says how to install it

@@ -117,8 +117,10 @@ class Viewer:
                     "malformed": stats.malformed, "last_seq": stats.last_seq,
                     "transforms_sent": stats.transforms_sent, "transforms_skipped": stats.transforms_skipped})
             else:
-                await apply(self.host, self.client, msg, text.encode() if isinstance(text, str) else text)
-        except Exception as exc:  # the client's mistake (ANSWERED) or the server's: the connection goes on
+                failed = await apply(self.host, self.hub, self.client, msg,
+                                     text.encode() if isinstance(text, str) else text)
+                stats.malformed += isinstance(failed, ProtocolError)
+        except Exception as exc:  # the client's mistake or the server's (logged): the connection goes on
             if isinstance(exc, ProtocolError):
                 stats.malformed += 1
             answer_error(self.hub, self.client, exc)
