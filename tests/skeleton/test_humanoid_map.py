@@ -514,8 +514,8 @@ def test_an_avatar_and_its_own_animations_map_alike(data_dir, name):
     from kinetre.motion.gltf import animation_skeleton
     avatar = load_avatar(data_dir / "avatars" / name)
     as_avatar = map_bones(avatar)
-    names, parents, rest = animation_skeleton(data_dir / "avatars" / name)
-    as_motion = take_map(names, parents, rest)
+    names, parents, rest, tips = animation_skeleton(data_dir / "avatars" / name)
+    as_motion = take_map(names, parents, rest, tips=tips)
     assert as_motion is not None
     assert as_motion.joints.keys() == as_avatar.joints.keys() and as_motion.derived.keys() == as_avatar.derived.keys()
     # the same joints (unnamed nodes are named differently by the two readers: compare where they stand)

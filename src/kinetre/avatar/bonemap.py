@@ -16,9 +16,11 @@ from ..errors import BadAvatarError, BadMotionError
 from ..skeleton.humanoid_map import (REQUIRED, UP, HumanoidMap, kinect_frames, map_humanoid, not_humanoid, parse_table,
                                      table_of, upright_problems)
 from ..skeleton.models import KINECT20, OPENNI17
+from ..skeleton.tips import part_end, part_tips
 from .load import Avatar
 
 __all__ = ["REQUIRED", "UP", "BoneMap", "map_path", "map_bones", "auto_map", "can_drive", "check_humanoid", "describe",
+           "mapping_skeleton",
            "write_map", "read_map", "parse_map", "kinect_from_openni"]
 
 # An avatar's map: Kinect joint -> skin joint index (`joints`), how each was found, the facing.
@@ -67,10 +69,41 @@ def can_drive(bonemap: BoneMap) -> bool:
 
 
 def auto_map(avatar: Avatar, saved: str | None = None) -> BoneMap:
-    """The map as found (saved file, VRM, names, topology, geometry), possibly incomplete (`BoneMap.missing`)."""
+    """The map as found (saved file, VRM, names, topology, geometry), possibly incomplete (`BoneMap.missing`).
+    Its skeleton is `mapping_skeleton`'s: the skin joints, then the part tips."""
     saved = saved if saved is not None else map_path(avatar.source)
     fixed = read_map(saved, avatar) if os.path.exists(saved) else None
-    return map_humanoid(avatar.joint_names, avatar.joint_parents, avatar.bind_positions, avatar.vrm_bones, fixed)
+    names, parents, rest, tips = mapping_skeleton(avatar)
+    return map_humanoid(names, parents, rest, avatar.vrm_bones, fixed, tips=tips)
+
+
+def mapping_skeleton(avatar: Avatar) -> tuple[tuple[str, ...], tuple[int, ...], np.ndarray, int]:
+    """(names, parents, bind positions, tips): the skin joints, then a tip where each childless joint's
+    skinned part ends, for those whose part lies off them (`kinetre.skeleton.tips`, as a motion file's
+    skeleton gets them)."""
+    n = len(avatar.joints)
+    sums, mass, mostly = np.zeros((n, 3)), np.zeros(n), [[] for _ in range(n)]
+    for prim in avatar.primitives:
+        # each vertex in its joints' own bind frames (IBM · v), as the glTF reader of motion files does
+        local = np.einsum("vkab,vb->vka", avatar.inverse_bind[prim.joints][..., :3, :3], prim.positions) + \
+            avatar.inverse_bind[prim.joints][..., :3, 3]
+        np.add.at(sums, prim.joints.ravel(), (prim.weights[..., None] * local).reshape(-1, 3))
+        np.add.at(mass, prim.joints.ravel(), prim.weights.ravel())
+        for v, k in zip(*np.nonzero(prim.weights >= 0.5)):
+            mostly[prim.joints[v, k]].append(local[v, k])
+    bind = avatar.bind_world
+
+    def world(j, c):
+        return bind[j, :3, :3] @ c + bind[j, :3, 3]
+
+    centres = {j: world(j, sums[j] / mass[j]) for j in range(n) if mass[j] > 0}
+    names, parents, rest = tuple(avatar.joint_names), tuple(int(q) for q in avatar.joint_parents), avatar.bind_positions
+    ends = part_tips(names, parents, rest, centres)
+    if not ends:
+        return names, parents, rest, 0
+    tips = [world(k, part_end(sums[k] / mass[k], np.array(mostly[k]).reshape(-1, 3))) for k, _, _ in ends]
+    return (names + tuple(name for _, name, _ in ends), parents + tuple(k for k, _, _ in ends),
+            np.vstack([rest, tips]), len(ends))
 
 
 def check_humanoid(avatar: Avatar, bonemap: BoneMap) -> None:

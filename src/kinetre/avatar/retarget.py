@@ -34,10 +34,11 @@ import numpy as np
 from ..jit import njit
 from ..rotation import minimal_rotation_into, minimal_rotations
 from ..skeleton.models import KINECT20
-from .bonemap import BoneMap
+from .bonemap import BoneMap, mapping_skeleton
 from .load import Avatar
 
 _K = {name: i for i, name in enumerate(KINECT20.joints)}
+_LIMBS = (("Shoulder", "Elbow", "Wrist"), ("Hip", "Knee", "Ankle"))
 _FIRST_CHILD = {KINECT20.joints[p]: KINECT20.joints[c] for c, p in reversed(list(enumerate(KINECT20.parents)))
                 if p >= 0}
 
@@ -174,6 +175,20 @@ def plan_retarget(avatar: Avatar, bonemap: BoneMap) -> RetargetPlan:
         aim_from[j], aim_to[j], rest_aim[j] = _K[kj], _K[child], d / np.linalg.norm(d)
         shoulders = "ShoulderLeft" in m and "ShoulderRight" in m
         twist[j] = shoulders and (kj == "Spine" or (kj == "ShoulderCenter" and _descends(parents, m["ShoulderLeft"], j)))
+    # a limb that stops at its shoulder or elbow (hip or knee), a game rig's one-bone arm: its last joint
+    # follows the limb's tracked end, its rest direction from the joint to the end its part gives
+    names, _, rest, _ = mapping_skeleton(avatar)
+    ends = bonemap.weights() @ rest if len(names) == len(bonemap.names) else None
+    if ends is not None:
+        for kj, j in m.items():
+            part, side = (kj[:-4], "Left") if kj.endswith("Left") else (kj[:-5], "Right")
+            chain = next((parts for parts in _LIMBS if part in parts[:2]), None)
+            if aim_from[j] >= 0 or not kj.endswith(("Left", "Right")) or chain is None or \
+                    chain[2] + side not in bonemap.derived:
+                continue
+            d = ends[_K[chain[2] + side]] - p[j]
+            if np.linalg.norm(d) > 1e-9 * max(float(np.ptp(p)), 1e-12):
+                aim_from[j], aim_to[j], rest_aim[j] = _K[kj], _K[chain[2] + side], d / np.linalg.norm(d)
     # the torso frame from what maps: a chibi without elbows still has shoulders, one without a neck a head
     side = np.zeros(3)
     for a, b in (("ShoulderLeft", "ShoulderRight"), ("HipLeft", "HipRight")):
@@ -188,6 +203,10 @@ def plan_retarget(avatar: Avatar, bonemap: BoneMap) -> RetargetPlan:
     align = np.array([[c, 0.0, s], [0.0, 1.0, 0.0], [-s, 0.0, c]])
     legs = [np.linalg.norm(p[m[f"Hip{x}"]] - p[m[f"Knee{x}"]]) + np.linalg.norm(p[m[f"Knee{x}"]] - p[m[f"Ankle{x}"]])
             for x in ("Left", "Right") if all(f"{k}{x}" in m for k in ("Hip", "Knee", "Ankle"))]
+    if not legs and ends is not None:               # a one-bone leg: to the end its part gives
+        legs = [np.linalg.norm(ends[_K[f"Hip{x}"]] - ends[_K[f"Knee{x}"]]) +
+                np.linalg.norm(ends[_K[f"Knee{x}"]] - ends[_K[f"Ankle{x}"]]) for x in ("Left", "Right")
+                if all(f"{k}{x}" in m or f"{k}{x}" in bonemap.derived for k in ("Hip", "Knee", "Ankle"))]
     if not legs:                                      # no whole leg: the hip centre's height stands for it
         legs = [max(float(p[root, 1] - p[:, 1].min()), 1e-9)]
     # a joint's glTF parent world = its nearest joint ancestor's world x the fixed rest offset between them

@@ -56,7 +56,8 @@ def _info_gltf(ref: str) -> None:
     print(f"  animations ({len(anims)}), use as --motion {os.path.basename(path)}#NAME or #INDEX:")
     for a in anims:
         print(f"    #{a.index} {a.name}: {a.duration:.2f} s, {a.channels} channels")
-    _print_motion_map(*animation_skeleton(path, frag), f"--motion {os.path.basename(ref)}")
+    names, parents, rest, tips = animation_skeleton(path, frag)
+    _print_motion_map(names, parents, rest, f"--motion {os.path.basename(ref)}", tips)
 
 
 def _info_avatar(path: str) -> None:
@@ -80,9 +81,9 @@ def _info_avatar(path: str) -> None:
     _print_map(bonemap)
 
 
-def _print_motion_map(names, parents, rest, usage: str) -> None:
+def _print_motion_map(names, parents, rest, usage: str, tips: int = 0) -> None:
     from ..skeleton.humanoid_map import map_humanoid, not_humanoid
-    hmap = map_humanoid(names, parents, rest)
+    hmap = map_humanoid(names, parents, rest, tips=tips)
     why = not_humanoid(hmap, rest)
     if why:
         print(f"  Kinect-20 map: none ({why}): {usage} drives a mesh by its own bones")

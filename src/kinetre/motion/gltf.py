@@ -24,6 +24,7 @@ from ..gltf_read import GltfDocument, read_gltf
 from ..rotation import quaternion_matrices, rotation_part, slerp
 from ..skeleton.models import SkeletonModel
 from ..skeleton.humanoid_map import take_map
+from ..skeleton.tips import part_end, part_tips
 from .bvh import kinect_take, upright
 from .take import Take
 
@@ -239,7 +240,18 @@ def skin_weights(d: GltfDocument) -> dict[int, float]:
 def skin_centroids(d: GltfDocument) -> dict[int, np.ndarray]:
     """Per joint node, the skin-weighted mean of the vertices it moves, in its own bind frame (inverse bind
     matrix times vertex): where the part it carries lies (empty when no mesh is skinned)."""
-    doc, sums, mass = d.doc, {}, {}
+    return {j: c for j, (c, _) in _skin_parts(d).items()}
+
+
+def skin_ends(d: GltfDocument) -> dict[int, np.ndarray]:
+    """Per joint node, where the part it carries ends, in its own bind frame: from the joint towards the
+    part's centre (`skin_centroids`), as far as the vertices it mostly moves reach (`part_end`)."""
+    return {j: part_end(c, v) for j, (c, v) in _skin_parts(d).items()}
+
+
+def _skin_parts(d: GltfDocument) -> dict[int, tuple[np.ndarray, np.ndarray]]:
+    """Per joint node: (weighted centre, the vertices it mostly moves (weight >= 1/2)), in its bind frame."""
+    doc, sums, mass, mostly = d.doc, {}, {}, {}
     for node in doc.nodes:
         if node.mesh is None or node.skin is None:
             continue
@@ -260,13 +272,16 @@ def skin_centroids(d: GltfDocument) -> dict[int, np.ndarray]:
             if idx.shape != w.shape or len(v) != len(idx) or idx.size and (idx.min() < 0 or idx.max() >= len(joints)):
                 raise BadMotionError(f"{d.path}: a skinned primitive's JOINTS_0 does not fit its skin")
             local = np.einsum("vkab,vb->vka", ibm[idx][..., :3, :3], v) + ibm[idx][..., :3, 3]
+            total = np.maximum(w.sum(axis=1, keepdims=True), 1e-12)
             for k, j in enumerate(joints):
                 hit = idx == k
                 if not (w * hit).sum() > 0:
                     continue
                 sums[j] = sums.get(j, 0.0) + (w[..., None] * hit[..., None] * local).sum(axis=(0, 1))
                 mass[j] = mass.get(j, 0.0) + float((w * hit).sum())
-    return {j: sums[j] / mass[j] for j in sums}
+                most = (w * hit / total >= 0.5).any(axis=1)
+                mostly.setdefault(j, []).append(local[most][hit[most]])
+    return {j: (sums[j] / mass[j], np.concatenate(mostly[j]) if j in mostly else np.zeros((0, 3))) for j in sums}
 
 
 def skeleton_nodes(d: GltfDocument, anim_index: int | None,
@@ -333,13 +348,25 @@ def _skeleton(d: GltfDocument, index: int, handles: bool = False):
 
 
 def animation_skeleton(path: str | os.PathLike, animation: str | int | None = None):
-    """(names, parents, rest positions (J, 3)) of the skeleton one animation moves ("file.glb#NAME" or
-    `animation`; default the first), handles included: what `load_gltf` maps to Kinect-20."""
+    """(names, parents, rest positions (J, 3), tips) of the skeleton one animation moves ("file.glb#NAME"
+    or `animation`; default the first), handles included, its last `tips` joints the part tips
+    (`kinetre.skeleton.tips`): what `load_gltf` maps to Kinect-20."""
     path, frag = split_animation(path)
     d = read_gltf(path, BadMotionError)
     info = _pick(animations(d), frag if animation is None else animation, path)
-    _, names, parents, rest = _skeleton(d, info.index, handles=True)
-    return names, parents, rest
+    return _mapped_skeleton(d, info.index)
+
+
+def _mapped_skeleton(d: GltfDocument, index: int):
+    nodes, names, parents, rest = _skeleton(d, index, handles=True)
+    ends = _tips(d, nodes, parents, names)
+    if not ends:
+        return names, parents, rest, 0
+    world = world_matrices(d, None, np.zeros(1))[0]
+    local = skin_ends(d)
+    tips = np.array([world[nodes[k], :3, :3] @ local[nodes[k]] + world[nodes[k], :3, 3] for k, _ in ends])
+    return (names + tuple(n for _, n in ends), parents + tuple(k for k, _ in ends), np.vstack([rest, tips]),
+            len(ends))
 
 
 def load_gltf(path: str | os.PathLike, animation: str | int | None = None, fps: float = 30.0,
@@ -374,17 +401,18 @@ def load_gltf(path: str | os.PathLike, animation: str | int | None = None, fps: 
     source = f"{path}#{info.name}"
     own = _own_take(d, info.index, world, float(fps), source)
     if as_kinect:
-        nodes, names, parents, rest = _skeleton(d, info.index, handles=True)
-        hmap = take_map(names, parents, rest)
+        names, parents, rest, tips = _mapped_skeleton(d, info.index)
+        hmap = take_map(names, parents, rest, tips=tips)
         if hmap is not None:
-            mapped = _own_take(d, info.index, world, float(fps), source, handles=True, tips=False)
+            mapped = _own_take(d, info.index, world, float(fps), source, handles=True, tips="end" if tips else "")
             return kinect_take(hmap, mapped, upright(hmap, rest), native=own)
     return own
 
 
 def _own_take(d: GltfDocument, index: int, world: np.ndarray, fps: float, source: str, handles: bool = False,
-              tips: bool = True) -> Take:
-    """The file's own skeleton as a take, with its bone frames (and tips)."""
+              tips: str = "centre") -> Take:
+    """The file's own skeleton as a take, with its bone frames and tips: at the parts' centres ("centre"),
+    where they end ("end", as the skeleton mapper reads them) or none ("")."""
     nodes, names, parents, _ = _skeleton(d, index, handles)
     positions = world[:, nodes][..., :3, 3]
     # a joint is carried by its parent node's frame (a non-joint node in between included)
@@ -394,7 +422,7 @@ def _own_take(d: GltfDocument, index: int, world: np.ndarray, fps: float, source
     # joints shows: a tip joint at that part's skinned centre, carried by the last joint, makes it a bone
     ends = _tips(d, nodes, parents, names) if tips else []
     if ends:
-        centres = skin_centroids(d)
+        centres = skin_centroids(d) if tips == "centre" else skin_ends(d)
         local = np.array([np.append(centres[nodes[k]], 1.0) for k, _ in ends])
         tip_world = np.einsum("fkab,kb->fka", world[:, [nodes[k] for k, _ in ends]][..., :3, :], local)
         positions = np.concatenate([positions, tip_world], axis=1)
@@ -409,23 +437,8 @@ def _own_take(d: GltfDocument, index: int, world: np.ndarray, fps: float, source
 
 
 def _tips(d: GltfDocument, nodes: list[int], parents: tuple[int, ...], names: tuple[str, ...]) -> list[tuple[int, str]]:
-    """(joint index, tip name) for every joint without child joints whose skinned part's centre lies off the
-    joint (by more than a tenth of the bone into it)."""
-    centres = skin_centroids(d)
-    has_child = set(parents)
-    taken = set(names)
+    """(joint index, tip name) of `kinetre.skeleton.tips.part_tips` on the file's rest pose."""
     world = world_matrices(d, None, np.zeros(1))[0]
-    out = []
-    for k, j in enumerate(nodes):
-        if k in has_child or j not in centres or parents[k] < 0:
-            continue
-        bone = np.linalg.norm(world[j, :3, 3] - world[nodes[parents[k]], :3, 3])
-        scale = np.linalg.norm(world[j, :3, :3], axis=0).mean()
-        if not np.linalg.norm(centres[j]) * scale > 0.1 * bone:
-            continue
-        name, n = f"{names[k]}.tip", 2
-        while name in taken:
-            name, n = f"{names[k]}.tip{n}", n + 1
-        taken.add(name)
-        out.append((k, name))
-    return out
+    local = skin_centroids(d)
+    centres = {k: world[j, :3, :3] @ local[j] + world[j, :3, 3] for k, j in enumerate(nodes) if j in local}
+    return [(k, name) for k, name, _ in part_tips(names, parents, world[nodes][:, :3, 3], centres)]

@@ -92,7 +92,8 @@ _WORDS = {
 }
 _NOISE = {"mixamorig", "j", "bip", "b", "def", "org", "mch", "joint", "jnt", "bone", "c", "cc", "base", "bn", "sk"}
 _HELPERS = {"twist", "ik", "pole", "target", "roll", "ctrl", "helper", "collar", "clavicle", "eye", "jaw",
-            "thumb", "pinky", "ring", "middle", "heel", "tail", "ear", "mouth"}
+            "thumb", "pinky", "ring", "middle", "heel", "tail", "ear", "mouth", "socket", "attach", "prop",
+            "weapon", "slot", "mount", "attachment"}
 _SIDES = {"left": "Left", "l": "Left", "right": "Right", "r": "Right"}
 
 
@@ -114,6 +115,8 @@ class HumanoidMap:
         Horizontal unit vector the skeleton faces in its rest pose.
     notes : tuple of str
         What the map decided against the names (sides swapped by geometry), for `describe`.
+    parents : tuple of int, (J,)
+        The source skeleton's parent per joint (-1: a root).
     """
 
     names: tuple[str, ...]
@@ -122,6 +125,7 @@ class HumanoidMap:
     derived: dict
     facing: np.ndarray
     notes: tuple[str, ...] = ()
+    parents: tuple[int, ...] = ()
 
     @property
     def missing(self) -> tuple[str, ...]:
@@ -141,11 +145,13 @@ class HumanoidMap:
 
     @property
     def limbs(self) -> tuple[str, ...]:
-        """The limbs ("arm left", "leg right", ...) with at least two of their joints mapped."""
+        """The limbs ("arm left", "leg right", ...) with a chain: one joint mapped and another mapped or
+        derived (a one-bone arm: the shoulder, and the wrist its part's end gives)."""
         out = []
         for limb, parts in LIMBS.items():
             for side in ("Left", "Right"):
-                if sum(p + side in self.joints for p in parts) >= 2:
+                mapped = sum(p + side in self.joints for p in parts)
+                if mapped and mapped + sum(p + side in self.derived for p in parts) >= 2:
                     out.append(f"{limb} {side.lower()}")
         return tuple(out)
 
@@ -222,7 +228,7 @@ def name_words(name: str) -> tuple[str, str, tuple[int, ...]]:
     >>> name_words("lShldrBend"), name_words("thigh.R"), name_words("J_Bip_L_UpperArm")
     (('Left', 'shldrbend', ()), ('Right', 'thigh', ()), ('Left', 'upperarm', ()))
     """
-    toks = _tokens(name)
+    toks = name_tokens(name)
     sides = {_SIDES[t] for t in toks if t in _SIDES}
     side = sides.pop() if len(sides) == 1 else ""
     digits = tuple(int(t) for t in toks if t.isdigit())
@@ -231,7 +237,12 @@ def name_words(name: str) -> tuple[str, str, tuple[int, ...]]:
     return side, "".join(t for t in toks if not t.isdigit() and t not in _NOISE and t not in _SIDES), digits
 
 
-def _tokens(name: str) -> list[str]:
+def name_tokens(name: str) -> list[str]:
+    """The lower-case words and numbers of a joint name (camel case, separators and namespace split).
+
+    >>> name_tokens("mixamorig:LeftUpLeg"), name_tokens("socket_hand_L")
+    (['left', 'up', 'leg'], ['socket', 'hand', 'l'])
+    """
     return [t.lower() for t in re.findall(r"[A-Z]+(?![a-z])|[A-Z]?[a-z]+|\d+", name.rsplit(":", 1)[-1])]
 
 
@@ -241,11 +252,11 @@ def is_helper(name: str) -> bool:
     >>> is_helper("LeftHandThumb1"), is_helper("joint3")
     (True, False)
     """
-    return bool(_HELPERS & set(_tokens(name)))
+    return bool(_HELPERS & set(name_tokens(name)))
 
 
 def map_humanoid(names, parents, rest: np.ndarray, vrm: dict | None = None,
-                 fixed: dict | None = None) -> HumanoidMap:
+                 fixed: dict | None = None, tips: int = 0) -> HumanoidMap:
     """Map a skeleton to Kinect-20 (the order of the module docstring).
 
     Parameters
@@ -259,10 +270,25 @@ def map_humanoid(names, parents, rest: np.ndarray, vrm: dict | None = None,
         VRM humanoid bone name -> joint index.
     fixed : dict, optional
         Kinect joint -> joint index that wins over everything (a saved map).
+    tips : int
+        How many of the last joints are part ends (`kinetre.skeleton.tips`: where a childless joint's
+        skinned part ends), not joints: they play no Kinect joint, but a limb of one bone (a shoulder whose
+        part is the whole arm) reaches its elbow and wrist through them.
     """
     names = tuple(names)
     parents = [int(p) for p in parents]
     p = np.asarray(rest, dtype=np.float64).reshape(len(names), 3)
+    n = len(names) - int(tips)
+    if n < 0 or any(q >= n for q in parents[:n]):
+        raise ValueError("map_humanoid: tips must be childless joints after the skeleton's own")
+    found, how, notes = _map_joints(names[:n], parents[:n], p[:n], vrm, fixed)
+    ends = {parents[t]: t for t in range(n, len(names)) if parents[t] >= 0}
+    _one_bone_arms(found, how, parents, p, ends)
+    derived = _derive(found, parents, names, ends)
+    return HumanoidMap(names, found, how, derived, _facing(p, found), tuple(notes), tuple(parents))
+
+
+def _map_joints(names, parents, p, vrm, fixed) -> tuple[dict, dict, list]:
     found: dict[str, int] = {}
     how: dict[str, str] = {}
 
@@ -280,20 +306,50 @@ def map_humanoid(names, parents, rest: np.ndarray, vrm: dict | None = None,
     if not vrm:
         for kj, j in _by_name(names, parents).items():
             put(kj, j, "name")
+        _limb_starts(found, how, names, parents)
     _by_topology(found, how, names, parents, p)
     notes = _sides_by_feet(found, how, parents, p)
     if any(j not in found for j in REQUIRED) or "Spine" not in found or "Head" not in found:
         for kj, j in _by_geometry(p, parents).items():
             put(kj, j, "geometry")
-    derived = _derive(found, parents, names)
-    return HumanoidMap(names, found, how, derived, _facing(p, found), tuple(notes))
+    return found, how, notes
 
 
-def take_map(names, parents, rest: np.ndarray | None, fixed: dict | None = None) -> HumanoidMap | None:
+def _limb_starts(found, how, names, parents) -> None:
+    """A limb of one bone names its bone by the limb ("leg-left", "LeftLeg" straight off the hips): the
+    bone leaving the body is the limb's first joint (hip, shoulder), whatever the name says."""
+    for parts in LIMBS.values():
+        for side in ("Left", "Right"):
+            first, second = parts[0] + side, parts[1] + side
+            if first in found or second not in found or how[second] != "name":
+                continue
+            up = parents[found[second]]
+            if up < 0 or name_words(names[up])[0] == "":   # hangs off the body (no side), not off a limb
+                found[first], how[first] = found.pop(second), how.pop(second)
+
+
+def _one_bone_arms(found, how, parents, p, ends) -> None:
+    """A hand hanging straight off the chest whose part reaches far from its joint (the joint sits at the
+    shoulder, the hand at the part's far end) is the whole arm: it plays the shoulder."""
+    for side in ("Left", "Right"):
+        w = found.get("Wrist" + side)
+        if w is None or "Shoulder" + side in found or "Elbow" + side in found or w not in ends or parents[w] < 0:
+            continue
+        if how["Wrist" + side] in ("file", "vrm"):
+            continue
+        if np.linalg.norm(p[ends[w]] - p[w]) > 0.5 * np.linalg.norm(p[w] - p[parents[w]]):
+            found["Shoulder" + side], how["Shoulder" + side] = found.pop("Wrist" + side), "topology"
+            how.pop("Wrist" + side)
+            if found.get("Hand" + side) is not None and how.get("Hand" + side) == "topology":
+                del found["Hand" + side], how["Hand" + side]
+
+
+def take_map(names, parents, rest: np.ndarray | None, fixed: dict | None = None, tips: int = 0) -> HumanoidMap | None:
     """The map a motion source is turned into Kinect-20 by, or None when its skeleton is not a humanoid
-    (no hip centre, mapped or derived; no limb chain; or legs that do not continue its spine:
-    an animal then drives a mesh by its own bones). Without `rest`, names and topology alone decide."""
-    hmap = map_humanoid(names, parents, np.zeros((len(names), 3)) if rest is None else rest, fixed=fixed)
+    (no hip centre, mapped or derived; no limb chain; more than two legs; or legs that do not continue its
+    spine: an animal then drives a mesh by its own bones). Without `rest`, names and topology alone decide."""
+    hmap = map_humanoid(names, parents, np.zeros((len(names), 3)) if rest is None else rest, fixed=fixed,
+                        tips=tips)
     return None if not_humanoid(hmap, rest) else hmap
 
 
@@ -303,7 +359,52 @@ def not_humanoid(hmap: HumanoidMap, rest: np.ndarray | None) -> str:
         return "no limb chain maps"
     if "HipCenter" not in hmap.joints and "HipCenter" not in hmap.derived:
         return "no hip centre maps"
-    return "; ".join(upright_problems(hmap, rest, up=None)) if rest is not None else ""
+    if rest is None:
+        return ""
+    legs = leg_count(hmap, rest)
+    if legs > 2:
+        return f"{legs} legs reach the floor"
+    return "; ".join(upright_problems(hmap, rest, up=None))
+
+
+def leg_count(hmap: HumanoidMap, rest: np.ndarray) -> int:
+    """How many chains leave the body and reach the floor in the rest pose: the branches, at the deepest
+    joint every floor joint below the hip centre hangs from, that hold floor joints (a humanoid's two legs;
+    a spider's eight).
+
+    The floor is the lowest joint along the torso's down (hips -> shoulder centre or head), along -Y
+    without one; a floor joint lies within 5 % of the skeleton's extent of it. Tips (part ends) count as
+    joints."""
+    p = np.asarray(rest, dtype=np.float64)
+    m = hmap.joints
+    top = next((m[k] for k in ("ShoulderCenter", "Head") if k in m), None)
+    up = UP
+    if "HipCenter" in m and top is not None and np.linalg.norm(p[top] - p[m["HipCenter"]]) > 1e-12:
+        up = (p[top] - p[m["HipCenter"]]) / np.linalg.norm(p[top] - p[m["HipCenter"]])
+    return _floor_chains(list(hmap.parents), p, up, m.get("HipCenter", -1))
+
+
+def _floor_chains(parents, p, up, body) -> int:
+    height = p @ up
+    extent = float(np.ptp(p, axis=0).max())
+    floor = [j for j in range(len(p)) if height[j] < height.min() + 0.05 * extent]
+    if body >= 0:                                    # legs leave the body (an IK foot on the armature does not)
+        below = [j for j in floor if _is_ancestor(parents, body, j)]
+        floor = below if below else floor
+    if len(floor) < 2:
+        return len(floor)
+    branch = floor[0]
+    for j in floor[1:]:
+        branch = _common_ancestor(parents, branch, j)
+        if branch < 0:
+            return len(floor)
+    groups = set()
+    for j in floor:
+        if j == branch:
+            continue
+        chain = _ancestors(parents, j)
+        groups.add(chain[chain.index(branch) - 1])
+    return len(groups)
 
 
 def kinect_frames(hmap: HumanoidMap, positions: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -479,15 +580,22 @@ def _by_topology(found, how, names, parents, p) -> None:
     if "HipLeft" in found and "HipRight" in found and how.get("HipCenter") != "file":
         lca = _common_ancestor(parents, found["HipLeft"], found["HipRight"])
         hc = found.get("HipCenter", -1)
-        if lca >= 0 and hc != lca and not _is_ancestor(parents, hc, found["HipLeft"]):
+        # a hip centre named above the legs' branch stays (a pelvis helper below it), unless it lies far
+        # from the branch (a root on the floor under a game rig's body)
+        leg = max(np.linalg.norm(p[_subtree(children, found[k])] - p[lca], axis=1).max()
+                  for k in ("HipLeft", "HipRight")) if lca >= 0 else 0.0
+        far = hc >= 0 and lca >= 0 and np.linalg.norm(p[hc] - p[lca]) > 0.5 * leg
+        if lca >= 0 and hc != lca and (far or not _is_ancestor(parents, hc, found["HipLeft"])):
             found.pop("HipCenter", None)
             claim("HipCenter", lca)
-    if "ShoulderLeft" in found and "ShoulderRight" in found and "ShoulderCenter" not in found:
-        lca = _common_ancestor(parents, found["ShoulderLeft"], found["ShoulderRight"])
-        if lca >= 0 and lca != found.get("HipCenter"):
+    # where the arms branch off: from their first joints (a hand straight off the chest is one)
+    starts = [next((found[k + s] for k in LIMBS["arm"][:3] if k + s in found), None) for s in ("Left", "Right")]
+    if None not in starts and "ShoulderCenter" not in found:
+        lca = _common_ancestor(parents, *starts)
+        if lca >= 0 and lca != found.get("HipCenter") and lca not in starts:
             claim("ShoulderCenter", lca)
     if "ShoulderCenter" in found and "Head" not in found:
-        arms = {found[k] for k in ("ShoulderLeft", "ShoulderRight") if k in found}
+        arms = {a for a in starts if a is not None}
         up = [c for c in children[found["ShoulderCenter"]]
               if not any(_is_ancestor(parents, c, a) for a in arms) and c not in found.values()]
         if up:
@@ -558,9 +666,12 @@ def _sides_by_feet(found, how, parents, p) -> list[str]:
     return notes
 
 
-def _derive(found, parents, names) -> dict:
-    """Blends for the paper's joints the skeleton lacks (module docstring)."""
+def _derive(found, parents, names, ends=None) -> dict:
+    """Blends for the paper's joints the skeleton lacks (module docstring); `ends`: childless joint -> the
+    tip where its part ends, by which a limb that stops at its shoulder or elbow (hip or knee) reaches on:
+    the end is its wrist (ankle), halfway there its elbow (knee)."""
     out: dict[str, tuple] = {}
+    ends = ends or {}
 
     def source(kj):
         if kj in found:
@@ -574,19 +685,29 @@ def _derive(found, parents, names) -> dict:
                 acc[j] = acc.get(j, 0.0) + a * w
         return tuple((j, w) for j, w in acc.items() if abs(w) > 1e-12)
 
+    for side in ("Left", "Right"):
+        for parts in LIMBS.values():
+            chain = [k + side for k in parts[:3]]
+            have = [k for k in chain if k in found]
+            if not have or chain[2] in found or found[have[-1]] not in ends:
+                continue
+            last, tip = found[have[-1]], ends[found[have[-1]]]
+            if have[-1] == chain[0] and chain[1] not in found:
+                out[chain[1]] = ((tip, 0.5), (last, 0.5))
+            out[chain[2]] = ((tip, 1.0),)
     for centre, a, b in (("HipCenter", "HipLeft", "HipRight"), ("ShoulderCenter", "ShoulderLeft", "ShoulderRight")):
-        if centre not in found and a in found and b in found:
+        if centre not in found and source(a) and source(b):
             out[centre] = blend((0.5, source(a)), (0.5, source(b)))
     if "Spine" not in found and source("HipCenter") and source("ShoulderCenter"):
         out["Spine"] = blend((0.75, source("HipCenter")), (0.25, source("ShoulderCenter")))
     for side in ("Left", "Right"):
         for end, mid, base, root in ((f"Hand{side}", f"Wrist{side}", f"Elbow{side}", f"Shoulder{side}"),
                                      (f"Foot{side}", f"Ankle{side}", f"Knee{side}", f"Hip{side}")):
-            if end in found or mid not in found:
+            if end in found or not source(mid):
                 continue
-            if base in found:
+            if source(base):
                 out[end] = blend((1.25, source(mid)), (-0.25, source(base)))
-            elif root in found:                      # no elbow (knee): a quarter of half the limb
+            elif source(root):                       # no elbow (knee): a quarter of half the limb
                 out[end] = blend((1.125, source(mid)), (-0.125, source(root)))
     return out
 
