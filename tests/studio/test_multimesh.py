@@ -145,6 +145,7 @@ def wait_job(studio: str, job: int, headers: dict | None = None) -> dict:
     return status
 
 
+@pytest.mark.slow  # a studio server process
 def test_the_studio_adds_a_mesh_each_person_possesses_one_and_removing_it_lets_go(tmp_path, walk):
     proc, studio = start_server(None, nodes=32)
     try:

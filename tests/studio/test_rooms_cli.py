@@ -11,6 +11,7 @@ from kinetre.cli import main
 from kinetre.studio.natsbus import NatsChannels, NetworkError, nkey_public
 
 
+@pytest.mark.slow  # a real nats-server
 def test_rooms_command_writes_a_working_configuration(tmp_path, capsys):
     conf, seed, port = tmp_path / "rooms.conf", tmp_path / "stage.nk", free_port()
     assert main(["rooms", "class=tok-7f3a", f"stage=@{seed}", "-o", str(conf), "--port", str(port)]) == 0

@@ -23,6 +23,8 @@ from kinetre.vmc.send import BONES, MIRROR, frame_bundle, vmc_frames
 from studio.studio_ws import StudioClient
 from studio.vmc_receiver import vmc_receiver
 
+pytestmark = pytest.mark.slow  # a studio server process in every test
+
 LIMBS = {"LeftLowerArm": ("ElbowLeft", "WristLeft", (1.0, 0.0, 0.0)),
          "RightLowerArm": ("ElbowRight", "WristRight", (-1.0, 0.0, 0.0)),
          "LeftLowerLeg": ("KneeLeft", "AnkleLeft", (0.0, -1.0, 0.0)),
