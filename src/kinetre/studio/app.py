@@ -1,7 +1,7 @@
 """The studio server: one scene host, its bus, the viewers' WebSocket and the HTTP routes, around the page.
 
 The data path through it: a page's skeleton frames come in on its WebSocket (viewer.py) and go onto the
-bus (the embedded `Hub`, or a NATS room: natsbus.py) → the scene solves (scene.py, in this process through
+bus (the embedded `Hub`, or a NATS room: natsbus.py) → the scene solves (scene/, in this process through
 `LocalScene`, or in a `kinetre scene` process that a `remote.GatewayScene` mirrors) → its transform blocks
 and state go back out through the bus to every viewer.
 
