@@ -18,7 +18,7 @@ APT_PACKAGES := libsuitesparse-dev build-essential chromium ffmpeg libegl1 libgl
 # $XDG_CACHE_HOME/kinetre/numba), the one a user's own `kinetre` runs read, so `kernels` warms theirs too.
 KERNEL_STAMP := $(VENV)/.kinetre-kernels
 
-.PHONY: setup studio test check bench bench-quick web apt python models kernels dist clean
+.PHONY: setup studio test check fuzz bench bench-quick web apt python models kernels dist clean
 
 apt: $(APT_STAMP)
 $(APT_STAMP):
@@ -87,6 +87,12 @@ test: setup
 # the quick tier: unit and numeric tests, no browser, studio server, NATS or Blender (see tests/conftest.py)
 check: python models
 	$(PY) -m pytest -q -m "not slow" tests
+
+# Every reader and the studio's message parser on many more mutated inputs than `make test`'s fixed-seed run,
+# with fresh randomness; files that break a reader are kept in tests/fuzz/found/ (FUZZ_EXAMPLES: cases per test).
+FUZZ_EXAMPLES ?= 500
+fuzz: setup
+	KINETRE_FUZZ_EXAMPLES=$(FUZZ_EXAMPLES) KINETRE_FUZZ_LONG=1 $(PY) -m pytest -q tests/fuzz
 
 bench: setup
 	OMP_NUM_THREADS=1 NUMBA_NUM_THREADS=1 $(PY) benchmarks/run.py

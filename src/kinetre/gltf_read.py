@@ -7,6 +7,7 @@ Every failure raises the error class the caller names (BadMotionError, BadAvatar
 from __future__ import annotations
 
 import base64
+import math
 import os
 from pathlib import Path
 
@@ -15,6 +16,137 @@ import numpy as np
 COMPONENT_TYPES = {5120: np.int8, 5121: np.uint8, 5122: np.int16, 5123: np.uint16, 5125: np.uint32,
                    5126: np.float32}
 WIDTHS = {"SCALAR": 1, "VEC2": 2, "VEC3": 3, "VEC4": 4, "MAT2": 4, "MAT3": 9, "MAT4": 16}
+# an accessor without a buffer view is zeros (glTF 2.0 §3.6.2.3): its size is not bounded by the file's
+MAX_ZERO_ELEMENTS = 1 << 26
+
+
+def _index(value, size: int) -> bool:
+    return isinstance(value, int) and not isinstance(value, bool) and 0 <= value < size
+
+
+def _count(value) -> bool:
+    return isinstance(value, int) and not isinstance(value, bool) and value >= 0
+
+
+def _numbers(value, length: int) -> bool:
+    return (isinstance(value, (list, tuple)) and len(value) == length and
+            all(isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x) for x in value))
+
+
+def document_problem(doc) -> str | None:
+    """The first broken reference or value in a glTF document, as a phrase, or None when every index points
+    at an existing object, counts and offsets are non-negative integers and node transforms are finite
+    (glTF 2.0 §3.5: nodes form disjoint strict trees). Readers index by these without further checks."""
+    lists = {}
+    for name in ("nodes", "meshes", "skins", "accessors", "bufferViews", "buffers", "materials", "textures",
+                 "images", "scenes", "animations", "cameras", "samplers"):
+        value = getattr(doc, name, None)
+        if value is None:
+            value = []
+        if not isinstance(value, list):
+            return f"'{name}' is not a list"
+        lists[name] = value
+    size = {name: len(v) for name, v in lists.items()}
+
+    def ref(value, kind, optional=True):
+        return (optional and value is None) or _index(value, size[kind])
+
+    if not ref(doc.scene, "scenes"):
+        return f"scene {doc.scene!r} does not exist"
+    for i, scene in enumerate(lists["scenes"]):
+        if not all(ref(n, "nodes", False) for n in scene.nodes or []):
+            return f"scene {i} names a node that does not exist"
+    parent = {}
+    for i, node in enumerate(lists["nodes"]):
+        children = node.children or []
+        if not isinstance(children, list):
+            return f"node {i} has children that are not a list"
+        for c in children:
+            if not ref(c, "nodes", False) or c == i or c in parent:
+                return f"node {i} has a bad or shared child {c!r}"
+            parent[c] = i
+        if not (ref(node.mesh, "meshes") and ref(node.skin, "skins") and ref(node.camera, "cameras")):
+            return f"node {i} names a mesh, skin or camera that does not exist"
+        if node.matrix is not None and not _numbers(node.matrix, 16):
+            return f"node {i} has a matrix that is not 16 finite numbers"
+        for field, length in (("translation", 3), ("rotation", 4), ("scale", 3)):
+            value = getattr(node, field)
+            if value is not None and not _numbers(value, length):
+                return f"node {i} has a {field} that is not {length} finite numbers"
+    for i in range(size["nodes"]):  # a cycle: walking up from a node comes back to it
+        seen, p = {i}, parent.get(i)
+        while p is not None:
+            if p in seen:
+                return f"the node hierarchy has a cycle through node {i}"
+            seen.add(p)
+            p = parent.get(p)
+    for i, skin in enumerate(lists["skins"]):
+        joints = skin.joints or []
+        if not isinstance(joints, list) or not all(ref(j, "nodes", False) for j in joints) or \
+                not ref(skin.inverseBindMatrices, "accessors") or not ref(skin.skeleton, "nodes"):
+            return f"skin {i} names a node or accessor that does not exist"
+    for i, mesh in enumerate(lists["meshes"]):
+        primitives = mesh.primitives or []
+        if not isinstance(primitives, list):
+            return f"mesh {i} has primitives that are not a list"
+        for k, prim in enumerate(primitives):
+            attrs = prim.attributes
+            values = list(vars(attrs).values()) if attrs is not None and hasattr(attrs, "__dict__") else []
+            for target in prim.targets or []:
+                values += list(target.values()) if isinstance(target, dict) else [target]
+            if not all(ref(a, "accessors") for a in values) or not ref(prim.indices, "accessors") or \
+                    not ref(prim.material, "materials") or not (prim.mode is None or _index(prim.mode, 7)):
+                return f"mesh {i} primitive {k} names an accessor or material that does not exist"
+    for i, a in enumerate(lists["accessors"]):
+        if a.componentType not in COMPONENT_TYPES or a.type not in WIDTHS or not _count(a.count) or \
+                not (a.byteOffset is None or _count(a.byteOffset)) or not ref(a.bufferView, "bufferViews"):
+            return f"accessor {i} has a bad type, count, offset or buffer view"
+        if a.bufferView is None and a.count * WIDTHS[a.type] > MAX_ZERO_ELEMENTS:
+            return f"accessor {i} has {a.count} elements and no data"
+        s = a.sparse
+        if s is not None:
+            if not _count(s.count) or s.count > a.count or s.indices is None or s.values is None or \
+                    s.indices.componentType not in COMPONENT_TYPES or \
+                    not ref(s.indices.bufferView, "bufferViews", False) or \
+                    not ref(s.values.bufferView, "bufferViews", False) or \
+                    not all(o is None or _count(o) for o in (s.indices.byteOffset, s.values.byteOffset)):
+                return f"accessor {i} has a malformed sparse part"
+    for i, bv in enumerate(lists["bufferViews"]):
+        stride = bv.byteStride
+        if not ref(bv.buffer, "buffers", False) or not _count(bv.byteLength) or \
+                not (bv.byteOffset is None or _count(bv.byteOffset)) or \
+                not (stride is None or (_count(stride) and 4 <= stride <= 252)):
+            return f"buffer view {i} has a bad buffer, offset, length or stride"
+    for i, buf in enumerate(lists["buffers"]):
+        if not (buf.byteLength is None or _count(buf.byteLength)) or not (buf.uri is None or isinstance(buf.uri, str)):
+            return f"buffer {i} has a bad byteLength or uri"
+    for i, anim in enumerate(lists["animations"]):
+        samplers, channels = anim.samplers or [], anim.channels or []
+        if not isinstance(samplers, list) or not isinstance(channels, list):
+            return f"animation {i} has samplers or channels that are not lists"
+        for s in samplers:
+            if not (ref(s.input, "accessors", False) and ref(s.output, "accessors", False)) or \
+                    not (s.interpolation is None or isinstance(s.interpolation, str)):
+                return f"animation {i} has a sampler naming an accessor that does not exist"
+        for c in channels:
+            if not _index(c.sampler, len(samplers)) or c.target is None or not ref(c.target.node, "nodes") or \
+                    not (c.target.path is None or isinstance(c.target.path, str)):
+                return f"animation {i} has a channel naming a sampler or node that does not exist"
+    for i, tex in enumerate(lists["textures"]):
+        if not ref(tex.source, "images"):
+            return f"texture {i} names an image that does not exist"
+    for i, image in enumerate(lists["images"]):
+        if not ref(image.bufferView, "bufferViews") or not (image.uri is None or isinstance(image.uri, str)):
+            return f"image {i} names a buffer view that does not exist"
+    for i, material in enumerate(lists["materials"]):
+        pbr = material.pbrMetallicRoughness
+        if pbr is None:
+            continue
+        if pbr.baseColorFactor is not None and not _numbers(pbr.baseColorFactor, 4):
+            return f"material {i} has a base colour that is not 4 finite numbers"
+        if pbr.baseColorTexture is not None and not ref(pbr.baseColorTexture.index, "textures", False):
+            return f"material {i} names a texture that does not exist"
+    return None
 
 
 class GltfDocument:
@@ -43,7 +175,10 @@ class GltfDocument:
             if buf.uri is None:
                 data = self.doc.binary_blob()
             elif buf.uri.startswith("data:"):
-                data = base64.b64decode(buf.uri.split(",", 1)[1])
+                try:
+                    data = base64.b64decode(buf.uri.split(",", 1)[-1], validate=True)
+                except ValueError:
+                    raise self.error(f"{self.path}: buffer {index} has a malformed data URI") from None
             else:
                 try:
                     data = (Path(self.path).parent / buf.uri).read_bytes()
@@ -135,4 +270,10 @@ def read_gltf(path: str | os.PathLike, error: type[Exception] = ValueError, embe
         raise error(f"{path}: not a readable glTF file ({type(e).__name__}: {e})") from None
     if doc is None:
         raise error(f"{path}: not a readable glTF file")
+    try:
+        problem = document_problem(doc)
+    except (AttributeError, TypeError, ValueError) as e:  # an object where a list or number belongs
+        problem = f"malformed ({type(e).__name__}: {e})"
+    if problem:
+        raise error(f"{path}: not a valid glTF file: {problem}")
     return GltfDocument(path, doc, error)

@@ -239,22 +239,30 @@ def _primitive(path, doc, reader, node, mesh, index, prim, joint_count) -> Primi
     attrs = prim.attributes
     if prim.mode not in (None, 4) or attrs.POSITION is None or attrs.JOINTS_0 is None or attrs.WEIGHTS_0 is None:
         return None                                  # points, lines, strips, unskinned parts: not drawn by us
-    pos = reader.accessor(attrs.POSITION)
+    pos = reader.accessor(attrs.POSITION).astype(np.float64)
     v = len(pos)
+    where = f"{path}: mesh {mesh} primitive {index}"
+    if pos.shape != (v, 3):
+        raise BadAvatarError(f"{where}: POSITION must be VEC3")
     joints = reader.accessor(attrs.JOINTS_0)
     weights = reader.accessor(attrs.WEIGHTS_0).astype(np.float64)
     if joints.shape != (v, 4) or weights.shape != (v, 4):
-        raise BadAvatarError(f"{path}: mesh {mesh} primitive {index}: JOINTS_0/WEIGHTS_0 must be VEC4 per vertex")
+        raise BadAvatarError(f"{where}: JOINTS_0/WEIGHTS_0 must be VEC4 per vertex")
     if (joints < 0).any() or (joints >= joint_count).any():
-        raise BadAvatarError(f"{path}: mesh {mesh} primitive {index}: JOINTS_0 names a joint outside the skin "
+        raise BadAvatarError(f"{where}: JOINTS_0 names a joint outside the skin "
                              f"({joint_count} joints)")
     total = weights.sum(axis=1, keepdims=True)
     weights = np.where(total > 0, weights / np.where(total > 0, total, 1.0), np.eye(4)[0])
-    faces = (reader.accessor(prim.indices)[:, 0] if prim.indices is not None else np.arange(v)).reshape(-1, 3)
-    if faces.size and (faces.max() >= v):
-        raise BadAvatarError(f"{path}: mesh {mesh} primitive {index}: an index points past its {v} vertices")
+    indices = reader.accessor(prim.indices) if prim.indices is not None else np.arange(v)[:, None]
+    if indices.shape[1:] != (1,) or len(indices) % 3 or indices.dtype.kind not in "iu":
+        raise BadAvatarError(f"{where}: the indices must be integer triangles (a SCALAR count divisible by 3)")
+    faces = indices[:, 0].reshape(-1, 3)
+    if faces.size and (faces.min() < 0 or faces.max() >= v):
+        raise BadAvatarError(f"{where}: an index points past its {v} vertices")
     normals = reader.accessor(attrs.NORMAL) if attrs.NORMAL is not None else _normals(pos, faces)
     uvs = reader.accessor(attrs.TEXCOORD_0) if attrs.TEXCOORD_0 is not None else None
+    if normals.shape != (v, 3) or (uvs is not None and uvs.shape != (v, 2)):
+        raise BadAvatarError(f"{where}: NORMAL must be VEC3 and TEXCOORD_0 VEC2 per vertex")
     color, image = np.array([0.8, 0.8, 0.8, 1.0]), None
     if prim.material is not None and doc.materials:
         pbr = doc.materials[prim.material].pbrMetallicRoughness

@@ -5,6 +5,7 @@ import gzip
 import io
 import os
 import warnings
+import zlib
 
 import numpy as np
 
@@ -16,6 +17,16 @@ from .normals import normals_and_area
 
 # trimesh's own names for the formats we accept; ".ply.gz" etc. are decompressed first.
 FORMATS = {"obj": "obj", "ply": "ply", "stl": "stl", "off": "off", "glb": "glb", "gltf": "gltf"}
+# a gzipped mesh may expand to at most this: a few-kB "gzip bomb" must not take all memory
+MAX_GUNZIPPED = 1 << 30
+
+
+def _gunzip(data: bytes, path: str) -> bytes:
+    with gzip.GzipFile(fileobj=io.BytesIO(data)) as fh:
+        out = fh.read(MAX_GUNZIPPED + 1)
+    if len(out) > MAX_GUNZIPPED:
+        raise BadMeshError(f"{path}: decompresses to more than {MAX_GUNZIPPED >> 30} GiB")
+    return out
 
 
 def _file_type(path: str) -> tuple[str, bool]:
@@ -54,8 +65,8 @@ def load_mesh(path: str | os.PathLike) -> Mesh:
         with open(path, "rb") as fh:
             data = fh.read()
         if gz:
-            data = gzip.decompress(data)
-    except (OSError, EOFError) as exc:
+            data = _gunzip(data, path)
+    except (OSError, EOFError, zlib.error) as exc:
         raise BadMeshError(f"{path}: cannot read file ({exc})") from None
     if not data.strip():
         raise BadMeshError(f"{path}: file is empty")
@@ -76,13 +87,21 @@ def mesh_from_trimesh(loaded, source: str = "") -> Mesh:
 
     label = source or "mesh"
     if isinstance(loaded, trimesh.Scene):
-        geoms = [g for g in loaded.dump() if isinstance(g, trimesh.Trimesh) and len(g.faces)]
+        for g in loaded.geometry.values():
+            if isinstance(g, trimesh.Trimesh):
+                check_indexed(g.vertices, g.faces, label)
+        try:
+            dumped = loaded.dump()
+        except Exception as exc:  # a scene graph trimesh cannot flatten (bad node references, transforms)
+            raise BadMeshError(f"{label}: cannot flatten the scene ({type(exc).__name__}: {exc})") from None
+        geoms = [g for g in dumped if isinstance(g, trimesh.Trimesh) and len(g.faces)]
         if not geoms:
             raise BadMeshError(f"{label}: the scene holds no triangles (a point cloud or empty file)")
         loaded = geoms[0] if len(geoms) == 1 else trimesh.util.concatenate(geoms)
     if not isinstance(loaded, trimesh.Trimesh):
         raise BadMeshError(f"{label}: holds no triangles (got a {type(loaded).__name__}, e.g. a point cloud)")
     tm = loaded
+    check_indexed(tm.vertices, tm.faces, label)
     if len(tm.faces) == 0:
         raise BadMeshError(f"{label}: has no faces (a point cloud or empty mesh)")
     if not np.isfinite(tm.vertices).all():
@@ -108,6 +127,23 @@ def mesh_from_trimesh(loaded, source: str = "") -> Mesh:
         colors = np.ascontiguousarray(visual.vertex_colors, dtype=np.uint8)
     return Mesh(vertices=vertices, faces=faces, normals=normals, uvs=uvs, colors=colors, material=material,
                 source=source)
+
+
+def check_indexed(vertices, faces, label: str) -> None:
+    """Refuse faces that are not (F, 3) integer rows naming existing vertices, before anything indexes by them
+    (the compiled cleanup and normal kernels read vertices[faces] unchecked)."""
+    vertices, faces = np.asarray(vertices), np.asarray(faces)
+    if vertices.ndim != 2 or vertices.shape[1] != 3:
+        raise BadMeshError(f"{label}: vertices are not x, y, z rows (shape {vertices.shape})")
+    if faces.size == 0:
+        return
+    if faces.ndim != 2 or faces.shape[1] != 3 or faces.dtype.kind not in "iu":
+        raise BadMeshError(f"{label}: faces are not triangles of vertex indices (shape {faces.shape}, "
+                           f"{faces.dtype})")
+    lo, hi = int(faces.min()), int(faces.max())
+    if lo < 0 or hi >= len(vertices):
+        bad = lo if lo < 0 else hi
+        raise BadMeshError(f"{label}: a face names vertex {bad}, but the mesh has {len(vertices)} vertices")
 
 
 def uvs_of(visual, count: int) -> np.ndarray | None:

@@ -20,6 +20,10 @@ from PIL import Image
 from ..errors import BadScanError
 
 IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg")
+# no depth camera makes bigger frames; a larger declared size is a broken or hostile file
+MAX_SIDE = 16384
+# what PIL raises for a file it cannot decode, a truncated one, or one declaring billions of pixels
+IMAGE_ERRORS = (OSError, ValueError, SyntaxError, Image.DecompressionBombError)
 # TUM's associate.py pairs rgb/depth stamps closer than 20 ms.
 TUM_MAX_DIFFERENCE = 0.02
 
@@ -98,7 +102,7 @@ def read_intrinsics(path: str | Path, size: tuple[int, int] | None = None) -> In
             data = json.loads(text)
             k = np.asarray(data["intrinsic_matrix"], dtype=float).reshape(3, 3).T  # stored column-major
             width, height = int(data["width"]), int(data["height"])
-        except (ValueError, KeyError, TypeError) as exc:
+        except (ValueError, KeyError, TypeError, OverflowError) as exc:
             raise BadScanError(f"{path}: not an Open3D PinholeCameraIntrinsic JSON "
                                f"(needs width, height, 9-value intrinsic_matrix): {exc}") from None
     else:
@@ -112,9 +116,10 @@ def read_intrinsics(path: str | Path, size: tuple[int, int] | None = None) -> In
             raise BadScanError(f"{path}: a TXT intrinsics matrix needs the image size")
         k = values.reshape(3, 3)
         width, height = size
-    if not (np.all(np.isfinite(k)) and k[0, 0] > 0 and k[1, 1] > 0 and width > 0 and height > 0):
-        raise BadScanError(f"{path}: intrinsics must have positive focal lengths and size, got "
-                           f"fx={k[0, 0]} fy={k[1, 1]} size={width}x{height}")
+    if not (np.all(np.isfinite(k)) and k[0, 0] > 0 and k[1, 1] > 0 and 0 < width <= MAX_SIDE
+            and 0 < height <= MAX_SIDE):
+        raise BadScanError(f"{path}: intrinsics must have positive focal lengths and a size of 1..{MAX_SIDE} "
+                           f"pixels, got fx={k[0, 0]} fy={k[1, 1]} size={width}x{height}")
     return Intrinsics(width, height, float(k[0, 0]), float(k[1, 1]), float(k[0, 2]), float(k[1, 2]))
 
 
@@ -149,6 +154,8 @@ def _read_tum_list(path: Path) -> tuple[np.ndarray, list[Path]]:
             files.append(path.parent / parts[1])
         except (ValueError, IndexError):
             raise BadScanError(f"{path}:{number}: expected 'timestamp filename', got {line!r}") from None
+        if not files[-1].resolve().is_relative_to(path.parent.resolve()):  # an upload must not read other files
+            raise BadScanError(f"{path}:{number}: {parts[1]!r} lies outside the frames folder")
     return np.asarray(stamps, dtype=float), files
 
 
@@ -209,9 +216,12 @@ def _layout(root: Path) -> tuple[str, list[Path], list[Path] | None, np.ndarray]
 def _image_size(path: Path) -> tuple[int, int]:
     try:
         with Image.open(path) as image:
-            return image.size
-    except (OSError, ValueError) as exc:
+            size = image.size
+    except IMAGE_ERRORS as exc:
         raise BadScanError(f"{path}: unreadable image ({exc})") from None
+    if not (0 < size[0] <= MAX_SIDE and 0 < size[1] <= MAX_SIDE):
+        raise BadScanError(f"{path}: an image of {size[0]}x{size[1]} pixels is not a depth camera's frame")
+    return size
 
 
 def open_sequence(root: str | Path, intrinsics: str | Path | Intrinsics | None = None,
@@ -264,7 +274,7 @@ def read_frame(sequence: RGBDSequence, index: int) -> tuple[np.ndarray, np.ndarr
         with Image.open(path) as image:
             mode = image.mode
             raw = np.asarray(image)
-    except (OSError, ValueError) as exc:
+    except IMAGE_ERRORS as exc:
         raise BadScanError(f"{path}: unreadable depth image ({exc})") from None
     if raw.dtype == np.uint8 or mode in ("L", "P", "RGB", "RGBA", "LA"):
         raise BadScanError(f"{path}: depth must be a 16-bit single-channel image, got 8-bit mode {mode!r} "
@@ -286,7 +296,7 @@ def read_frame(sequence: RGBDSequence, index: int) -> tuple[np.ndarray, np.ndarr
         try:
             with Image.open(cpath) as image:
                 color = np.asarray(image.convert("RGB"))
-        except (OSError, ValueError) as exc:
+        except IMAGE_ERRORS as exc:
             raise BadScanError(f"{cpath}: unreadable colour image ({exc})") from None
         if color.shape[:2] != depth.shape:
             with Image.fromarray(color) as image:  # colour registered to depth at another resolution
