@@ -18,8 +18,8 @@ Records (one JSON object per line, "bench": "animate"):
 * `"clip": "hops 23 s"`: the same whole-command timing on a longer clip (the whole 23 s CMU hops at 30 fps).
 * `"bench": "animate_startup"`: `kinetre --help` and an argument error, whole process.
 
-`--quick` (make bench-quick): only the hops record, three runs, with the numba cache the environment names
-(warm after `make setup`) instead of a new one.
+`--quick` (make bench-quick): only the hops record, three runs, with the kernels `make setup` cached (the
+environment's NUMBA_CACHE_DIR, else the user's cache) instead of a new, empty cache.
 
 An earlier version of this bench ran first in `make bench` on a fresh clone and so reported the cold figure
 as the graph stage's cost; the version before this one timed only the stages inside a running interpreter.
