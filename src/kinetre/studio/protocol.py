@@ -6,6 +6,8 @@ Client → server (WebSocket text, JSON objects with a "type"):
     {"type": "possess", "subset": str | [str] | null, "hand": "left" | "right" | null}   {"type": "release"}
         (with "hand", that hand's landmarks (the skeleton frames' "hands") possess instead of the body)
     {"type": "subset", "subset": ...}   {"type": "place", "scale": s, "position": [3], "yaw": radians}
+        (scale in 1e-3..1e3, position within ±50 m, yaw within ±2π: `check_placement`; tracked joints and hand
+        landmarks also lie within ±50 m)
     {"type": "fit"}   {"type": "player", "on": bool}   {"type": "stats"}
     {"type": "subscribe", "skeletons": bool, "window": int}   (also receive the other users' skeleton
         frames; with window > 0 the server keeps at most that many messages unacknowledged)
@@ -37,6 +39,12 @@ from ..skeleton.mediapipe import BLENDSHAPES
 from ..skeleton.models import MODELS, Skeleton
 
 MAX_MESSAGE = 1 << 16  # bytes; a Kinect-20 frame is ~1.5 kB
+# The physical bounds of what a client may ask of a shared scene (a mesh from a toy to a house, people in a
+# room): outside them a command is refused naming its field, so no client can leave the scene unable to solve.
+SCALE_RANGE = (1e-3, 1e3)
+ROOM = 50.0  # metres: every coordinate of a placement, a tracked joint or a hand lies within ±ROOM
+MAX_YAW = 2 * math.pi  # radians, a full turn either way
+MAX_MESH = 1 << 20
 _NUMBER_TYPES, _BOOL, _LIST, _THREE = {int, float}, {bool}, {list}, {3}
 
 
@@ -95,6 +103,9 @@ def parse_skeleton(msg: dict) -> tuple[int, float, Skeleton]:
             pos[[i for i, row in enumerate(rows) if row is not None]] = present
     except OverflowError:  # an integer beyond float range
         raise ProtocolError("a joint position is out of range") from None
+    outside = np.flatnonzero((np.abs(pos) > ROOM).any(axis=1))  # NaN rows (untracked) compare false
+    if outside.size:
+        raise ProtocolError(f"joint {outside[0]} of 'positions' lies outside the room (±{ROOM:g} m)")
     try:
         skeleton = Skeleton(model, pos, np.asarray(tracked, dtype=bool))
     except BadSkeletonError as exc:
@@ -139,8 +150,9 @@ def parse_hands(value) -> np.ndarray | None:
             out[side] = marks
         except OverflowError:
             raise ProtocolError(f"the {name} hand has a coordinate out of range") from None
-        if not np.isfinite(out[side]).all():
-            raise ProtocolError(f"the {name} hand has a coordinate that is not finite")
+        if not (np.abs(out[side]) <= ROOM).all():  # NaN fails too
+            raise ProtocolError(f"the {name} hand has a coordinate that is not finite or outside the room "
+                                f"(±{ROOM:g} m)")
     return out
 
 
@@ -185,20 +197,40 @@ def parse_mesh(msg: dict) -> int | None:
     mesh = msg.get("mesh")
     if mesh is None:
         return None
-    if type(mesh) is not int or mesh < 1:
-        raise ProtocolError(f"'mesh' must be a mesh id (a positive integer), got {mesh!r}")
+    if type(mesh) is not int or not 1 <= mesh <= MAX_MESH:
+        raise ProtocolError(f"'mesh' must be a mesh id (an integer 1..{MAX_MESH}), got {mesh!r}")
     return mesh
 
 
 def parse_place(msg: dict) -> tuple[float, list, float]:
-    """A "place" message's (scale, position, yaw); scale 1, the origin and yaw 0 where it names none."""
+    """A "place" message's (scale, position, yaw), checked by `check_placement`; scale 1, the origin and yaw 0
+    where it names none."""
     scale, position, yaw = msg.get("scale", 1.0), msg.get("position", [0, 0, 0]), msg.get("yaw", 0.0)
     if not isinstance(position, list) or len(position) != 3 or not all(type(v) in _NUMBER_TYPES for v in position):
         raise ProtocolError(f"position must be a list of 3 numbers, got {position!r}")
     for name, value in (("scale", scale), ("yaw", yaw)):
         if type(value) not in _NUMBER_TYPES:
             raise ProtocolError(f"{name} must be a number, got {value!r}")
-    return float(scale), position, float(yaw)
+    scale, _, yaw = check_placement(scale, position, yaw)
+    return scale, position, yaw
+
+
+def check_placement(scale, position, yaw) -> tuple[float, tuple, float]:
+    """(scale, position, yaw) as floats when they lie in the scene's physical bounds (`SCALE_RANGE`, ±`ROOM`,
+    ±`MAX_YAW`); else a ProtocolError naming the field."""
+    try:
+        scale, yaw, position = float(scale), float(yaw), tuple(float(v) for v in position)
+    except (TypeError, ValueError, OverflowError):
+        raise ProtocolError(f"a placement is numbers, got scale {scale!r}, position {position!r}, yaw {yaw!r}") \
+            from None
+    lo, hi = SCALE_RANGE
+    if not lo <= scale <= hi:  # NaN fails too
+        raise ProtocolError(f"scale must be within {lo:g}..{hi:g}, got {scale!r}")
+    if len(position) != 3 or not all(abs(v) <= ROOM for v in position):
+        raise ProtocolError(f"position must be 3 numbers within the room (±{ROOM:g} m), got {list(position)!r}")
+    if not abs(yaw) <= MAX_YAW:
+        raise ProtocolError(f"yaw must be within ±{MAX_YAW:.4g} radians (a full turn), got {yaw!r}")
+    return scale, position, yaw
 
 
 def check_hand(value) -> str | None:

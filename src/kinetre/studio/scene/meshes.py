@@ -20,7 +20,7 @@ from ...mesh.upright import Upright
 from ...motion.fit import yaw_rotation
 from ...skeleton.models import Skeleton
 from ..placement import Placement
-from ..protocol import ProtocolError
+from ..protocol import ProtocolError, check_placement
 from .users import User
 
 
@@ -104,12 +104,7 @@ class Meshes(dict):
 
 def place(m: SceneMesh, scale: float, position, yaw: float) -> None:
     """Stand mesh `m` at `position` (metres), turned by `yaw` (radians) about +Y, scaled by `scale`."""
-    if not (np.isfinite(scale) and scale > 0):
-        raise ProtocolError(f"scale must be a positive number, got {scale}")
-    pos = tuple(float(v) for v in position)
-    if len(pos) != 3 or not np.all(np.isfinite(pos)) or not np.isfinite(yaw):
-        raise ProtocolError("position must be 3 finite numbers and yaw a finite number")
-    m.placement = Placement(float(scale), pos, float(yaw))
+    m.placement = Placement(*check_placement(scale, position, yaw))
 
 
 def fit(m: SceneMesh, user: User | None) -> None:
@@ -121,7 +116,12 @@ def fit(m: SceneMesh, user: User | None) -> None:
     mesh_height = float(np.ptp(m.mesh.vertices[:, 1]))
     if height <= 0.3 or mesh_height <= 0:
         raise AttachError(f"the tracked skeleton is {height:.2f} m tall: show your whole body to the camera")
-    m.placement = Placement.fitted(sk, m.mesh, m.placement.yaw)
+    fitted = Placement.fitted(sk, m.mesh, m.placement.yaw)
+    try:  # a skeleton in the room, but a mesh that would need a scale out of bounds to match it
+        check_placement(fitted.scale, fitted.position, fitted.yaw)
+    except ProtocolError as e:
+        raise AttachError(f"fit: the mesh cannot be scaled to this skeleton ({e})") from None
+    m.placement = fitted
 
 
 def stand_in(skeleton: Skeleton, source, placement: Placement) -> tuple[np.ndarray, np.ndarray]:
