@@ -38,13 +38,21 @@ def parse_all(raw: bytes) -> None:
             continue
         assert value is None or (type(value) is int and 1 <= value <= protocol.MAX_PERSON or parse is protocol.parse_mesh
                                  and type(value) is int and value >= 1)
+    if msg["type"] == "place":
+        try:
+            scale, position, yaw = protocol.parse_place(msg)
+        except protocol.ProtocolError:
+            return
+        lo, hi = protocol.SCALE_RANGE
+        assert lo <= scale <= hi and abs(yaw) <= protocol.MAX_YAW
+        assert all(abs(v) <= protocol.ROOM for v in position)
     if msg["type"] == "skeleton":
         try:
             frame = protocol.parse_frame(msg)
         except protocol.ProtocolError:
             return
         sk = frame.skeleton
-        assert np.isfinite(sk.positions[sk.tracked]).all()
+        assert (np.abs(sk.positions[sk.tracked]) <= protocol.ROOM).all()
         assert math.isfinite(frame.t) and frame.seq >= 0
         if frame.hands is not None:
             assert frame.hands.shape == (2, 21, 3)
