@@ -74,7 +74,7 @@ async def model_get(request: Request) -> Response:
 def create_app(mesh_path: str | None = None, nodes: int = NODES, sample_motion: bool = True, *,
                nats: str | None = None, room: str = "main", token: str | None = None,
                remote_scene: bool = False, nkey: str | None = None, vmc: tuple[str, int] | None = None,
-               vmc_listen: tuple[str, int] | None = None) -> Starlette:
+               vmc_listen: tuple[str, int] | None = None, clean: bool = False) -> Starlette:
     """The studio as an ASGI app (tests run it under uvicorn on 127.0.0.1).
 
     With `nats` (a NATS server URL) the channels are that server's subjects for `room` (natsbus.py);
@@ -82,6 +82,7 @@ def create_app(mesh_path: str | None = None, nodes: int = NODES, sample_motion: 
     the pages' gateway to it (remote.py). A `token` is required from every client (access.py); `nkey`, the
     room's nkey seed file, then authenticates to NATS instead of the token. `vmc` (host, port): the avatars
     send VMC there (vmc_out.py); `vmc_listen` (host, port): VMC performers there become users (vmc_in.py).
+    `clean`: users' body frames are smoothed and their feet held before the solve (kinetre.motion.cleanup).
     """
     hub = NatsChannels(room) if nats else Hub()
     host: SceneHost
@@ -95,7 +96,7 @@ def create_app(mesh_path: str | None = None, nodes: int = NODES, sample_motion: 
         raw = load_mesh(path)
         mesh, graph, upright = prepare_upright(raw, path, nodes)
         scene = Scene(hub, mesh, graph, Path(path).name, solver=SolveWorker(),  # the solve never holds the server
-                      upright=upright, new_solver=SolveWorker)
+                      upright=upright, new_solver=SolveWorker, clean=clean)
         player = sample_player(hub) if sample_motion and mesh_path is None else None
         host = LocalScene(hub, scene, player, nodes=nodes, source=(raw, Path(path).name))
     shelf = Shelf()

@@ -30,7 +30,8 @@ def scene_state(meshes: Meshes, users: Users, recording: bool, joint_map, error:
         "placement": listed[0]["placement"],
         "meshes": listed,
         "users": [{"client": u.client, "possessing": u.bind is not None, "mesh": u.mesh, "subset": u.subset,
-                   "hand": u.hand, "frames": u.frames, "attached": attached.get(u.client, [])}
+                   "hand": u.hand, "frames": u.frames, "attached": attached.get(u.client, []),
+                   "quality": None if u.meter is None else u.meter.figures()}
                   for u in users.values()],
         "recording": recording,
         "joint_map": None if joint_map is None else {"name": joint_map.path, "sources": len(joint_map.sources)},

@@ -14,8 +14,10 @@ from typing import Callable
 
 import numpy as np
 
+from ...motion.cleanup import LiveCleaner, RoomFloor
 from ...motion.hands import SIDES, HandPuppet
-from ...skeleton.models import HAND21, Skeleton
+from ...motion.quality import LiveMeter
+from ...skeleton.models import HAND21, KINECT20, Skeleton
 from ...skeleton.subsets import subset_mask
 from ..channels import Frame
 from ..placement import Placement
@@ -64,6 +66,8 @@ class User:
     stand: tuple | None = None  # (R, t): where a joint map's source stands, x -> R x + t (see meshes.stand_in)
     hand: str | None = None  # "left" or "right" while a hand possesses (a hand puppet), None for the body
     puppet: HandPuppet | None = None  # that hand put inside the mesh, fitted at possession
+    cleaner: LiveCleaner | None = None  # smooths its body frames and holds its feet (None: used as they come)
+    meter: LiveMeter | None = None  # its live motion quality (with a cleaner)
 
     @property
     def latest(self) -> Skeleton | None:
@@ -104,9 +108,20 @@ class User:
         return self.bind is not None
 
     def take_frame(self, frame: SkeletonFrame) -> None:
-        """Keep `frame` as the newest parsed frame."""
+        """Keep `frame` as the newest parsed frame, its body cleaned first when the user has a cleaner
+        (kinetre.motion.cleanup: causal, no frame of delay) and measured by its meter."""
+        skeleton = frame.skeleton
+        if self.cleaner is not None and skeleton.model is self.cleaner.model:
+            seconds = frame.t / 1000.0  # frames carry milliseconds
+            cleaned = self.cleaner(np.where(skeleton.tracked[:, None], skeleton.positions, np.nan), seconds)
+            held, hold = self.cleaner.held()
+            joints = list(self.cleaner.joints or ())
+            self.meter.add(skeleton.positions, cleaned, seconds, held,
+                           np.linalg.norm(cleaned[joints] - hold, axis=1) if joints else None)
+            skeleton = Skeleton(skeleton.model, np.where(np.isfinite(cleaned), cleaned, skeleton.positions),
+                                skeleton.tracked)
         self.parsed, self.parsed_hands, self.parsed_blendshapes, self.raw = \
-            frame.skeleton, frame.hands, frame.blendshapes, None
+            skeleton, frame.hands, frame.blendshapes, None
 
     def _parse_raw(self) -> None:
         if self.raw is not None:
@@ -146,10 +161,15 @@ class User:
 
 
 class Users(dict):
-    """The scene's users by client, and what became of the frames that reached it."""
+    """The scene's users by client, and what became of the frames that reached it.
 
-    def __init__(self):
+    With `clean`, every user's body frames but those of the clients in `as_sent` (mocap, such as the sample
+    player) are cleaned live before the solve, all on one floor for the room (`room`)."""
+
+    def __init__(self, clean: bool = True, as_sent: tuple[str, ...] = ()):
         super().__init__()
+        self.clean, self.as_sent = clean, tuple(as_sent)
+        self.room = RoomFloor()
         self.late = 0  # skeleton frames older than the user's newest (dropped)
         self.superseded = 0  # possessing users' frames replaced by a newer one before any solve used them
         self.frames_in = 0  # skeleton frames that reached the scene
@@ -157,7 +177,9 @@ class Users(dict):
     def user(self, client: str) -> User:
         """User `client`, added on first mention."""
         if client not in self:
-            self[client] = User(client)
+            user = self[client] = User(client)
+            if self.clean and client not in self.as_sent:
+                user.cleaner, user.meter = LiveCleaner(KINECT20, room=self.room), LiveMeter()
         return self[client]
 
     def possessing(self, mesh_id: int) -> list[str]:
