@@ -11,6 +11,9 @@ def register(sub) -> None:
     p.add_argument("--port", type=int, default=8000)
     p.add_argument("--host", default="127.0.0.1")
     p.add_argument("--no-browser", action="store_true", help="do not open a browser")
+    p.add_argument("--clean", action="store_true",
+                   help="smooth the users' body frames and hold their feet on the room's floor before the solve; "
+                        "the page shows each user's motion meter")
     add_room_options(p)
     p.add_argument("--remote-scene", action="store_true",
                    help="no scene in this server: a `kinetre scene` process on the same NATS room solves")
@@ -47,5 +50,5 @@ def cmd_studio(args) -> int:
     _models_for_the_page()
     run_studio(args.mesh, host=args.host, port=args.port, open_browser=not args.no_browser, nats=args.nats,
                room=args.room, token=room_token(args), remote_scene=args.remote_scene, nkey=args.nkey, vmc=vmc,
-               vmc_listen=vmc_listen)
+               vmc_listen=vmc_listen, clean=args.clean)
     return 0

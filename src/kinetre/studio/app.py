@@ -165,7 +165,8 @@ def possess_command(host: SceneHost):
 def run_studio(mesh_path: str | None, host: str = "127.0.0.1", port: int = 8000, open_browser: bool = True,
                nodes: int = NODES, sample_motion: bool = True, *, nats: str | None = None, room: str = "main",
                token: str | None = None, remote_scene: bool = False, nkey: str | None = None,
-               vmc: tuple[str, int] | None = None, vmc_listen: tuple[str, int] | None = None) -> None:
+               vmc: tuple[str, int] | None = None, vmc_listen: tuple[str, int] | None = None,
+               clean: bool = False) -> None:
     """Serve the studio until interrupted (what `kinetre studio` runs). Raises KinetreError on a bad mesh,
     an unreachable or refusing NATS server, a non-loopback `host` without a `token`, or a VMC port that
     cannot be listened on.
@@ -179,7 +180,7 @@ def run_studio(mesh_path: str | None, host: str = "127.0.0.1", port: int = 8000,
     if vmc_listen is not None:
         check_listen(*vmc_listen)
     app = create_app(mesh_path, nodes, sample_motion, nats=nats, room=room, token=token, remote_scene=remote_scene,
-                     nkey=nkey, vmc=vmc, vmc_listen=vmc_listen)
+                     nkey=nkey, vmc=vmc, vmc_listen=vmc_listen, clean=clean)
     url = f"http://{'127.0.0.1' if host in ('0.0.0.0', '::') else host}:{port}/"
     if token:
         url += f"?token={token}"
