@@ -38,16 +38,18 @@ SECONDS = 15
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--query", default="?noshadows", help="the studio page's query string")
-    query = parser.parse_args().query
+    parser.add_argument("--people", default="1,2", help="which cameras: 1, 2 or 1,2 (default)")
+    args = parser.parse_args()
+    query, wanted = args.query, {int(n) for n in args.people.split(",")}
     if not (ROOT / "src" / "kinetre" / "studio" / "static" / "index.html").is_file():
         print(json.dumps({"bench": "tracking_page", "error": "the page is not built: make web"}))
         return
     with tempfile.TemporaryDirectory(prefix="kinetre-bench-") as folder:
         cameras = [(1, (VIDEO / "pose_1_320x240_30fps.y4m").resolve()),
                    (2, y4m((VIDEO / "two_people_pose_1_640x360.mp4").resolve(), Path(folder) / "two.y4m"))]
-        proc, url = start_server(nodes=128, sample_motion=False, timeout=300)  # slow to start on a busy machine
+        proc, url = start_server(nodes=128, sample_motion=False, timeout=600)  # slow to start on a busy machine
         try:
-            for people, video in cameras:
+            for people, video in [(n, v) for n, v in cameras if n in wanted]:
                 if people == 2:  # both possess: the front and back legs, as in the paper's horse
                     httpx.post(url + "/api/jointmap?name=two-people-horse.json",
                                content=(ROOT / "examples" / "maps" / "two-people-horse.json").read_bytes())

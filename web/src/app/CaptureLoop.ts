@@ -36,17 +36,31 @@ export class CaptureLoop {
   trackedJoints = 0;
   handsSeen: [boolean, boolean] = [false, false]; // [left, right] in the newest frame sent
   trackingLost = false;
+  /** What the address allows (`?nohands`, `?noface`, `?notiles` turn one off) and what the page uses now. */
+  private readonly allowed: { hands: boolean; face: boolean; tiles: boolean };
+  private wanted = { hands: false, face: false };
 
   constructor(readonly camera: Camera, private readonly host: CaptureHost) {
     const query = new URLSearchParams(location.search);
+    this.allowed = { hands: !query.has('nohands'), face: !query.has('noface'), tiles: !query.has('notiles') };
     this.tracker = new LandmarkTracker({
       wasm: new URL('mediapipe/tasks-vision/', document.baseURI).href,
       models: new URL('models/', document.baseURI).href,
       delegate: (query.get('delegate')?.toUpperCase() as 'CPU' | 'GPU' | null) ?? 'auto',
       numPoses: 4,
-      features: { hands: !query.has('nohands'), face: !query.has('noface'), tiles: !query.has('notiles') },
+      features: { hands: false, face: false, tiles: this.allowed.tiles },
     });
     this.people = new People((m) => this.host.send(m));
+  }
+
+  /** Look for hands and a face only while something uses them (an avatar, the face puppet, a hand puppet):
+   * each costs the worker a landmarker to make, seconds under SwiftShader, and a search on every frame.
+   * Only a change is passed on, so features set on the tracker directly stay until the use changes. */
+  want(hands: boolean, face: boolean): void {
+    if (hands === this.wanted.hands && face === this.wanted.face) return;
+    this.wanted = { hands, face };
+    this.tracker.setFeatures({ hands: hands && this.allowed.hands, face: face && this.allowed.face,
+      tiles: this.allowed.tiles });
   }
 
   async toggle(): Promise<void> {

@@ -132,7 +132,10 @@ export class Studio {
     this.jointMap = new JointMapControl(this.panel.area('body'), say);
     // a hand chosen while possessing takes over from the body (or the other hand) at once
     this.puppet = new PuppetControl(this.panel.area('body').querySelector('#body-drive') as HTMLElement,
-      puppetFromQuery(new URLSearchParams(location.search)), () => { if (this.possessing) this.possess(); });
+      puppetFromQuery(new URLSearchParams(location.search)), () => {
+        this.wantHandsAndFace();
+        if (this.possessing) this.possess();
+      });
     this.upAxis = new UpAxisControl(this.panel.area('scene'), say);
     this.meshList = new MeshList(this.panel.area('scene'), say);
 
@@ -162,6 +165,7 @@ export class Studio {
     this.face = new FaceController(this.camera, this.viewport, this.panel.area('face'), say);
     this.face.anchor = () => neckAnchor((joint) => this.avatars.bone(joint));  // on an avatar's neck, if any
     installFaceTestHook(this.face);
+    this.wantHandsAndFace();
   }
 
   start(): void {
@@ -386,9 +390,16 @@ export class Studio {
       this.me.updatedAt = now;
     }
     if (this.viewport.frames % 15 === 0) {
+      this.wantHandsAndFace();
       this.updateStatus();
       this.people.show(this.capture.people.ids, this.capture.people.main, this.meshChoices());
     }
+  }
+
+  /** The tracker looks for hands and a face only while an avatar, the face puppet or a hand puppet uses them. */
+  private wantHandsAndFace(): void {
+    const avatar = this.avatars.payload !== null;
+    this.capture.want(avatar || this.puppet.hand !== null, avatar || this.face.on);
   }
 
   /** Possess with every person in this camera: the page's own user first, then the others in id order (a

@@ -3,28 +3,53 @@
 // The GPU delegate draws into the worker's own OffscreenCanvas; software WebGL (SwiftShader) is slower
 // than the wasm CPU path, so it counts as no GPU.
 //
+// Only the whole frame's PoseLandmarker is made before the worker says it is ready: each landmarker takes
+// seconds to make under SwiftShader, and a detection costs the sum of the landmarkers it runs. Every other
+// one is made in the background when first wanted, and the frames meanwhile go without it: the hand and face
+// landmarkers when the page asks for hands or a face (`features`: an avatar, the face puppet or a hand
+// puppet), a square's PoseLandmarker when its search is first due.
+//
 // Bodies in a wide frame are also looked for in its overlapping squares (tiles.ts), each square with a
 // PoseLandmarker of its own (VIDEO mode follows what it found in the previous frame of the same stream).
-// To keep detections coming at nearly the rate of the whole frame's, a frame searches the whole frame and
-// every square that last found someone the whole frame missed; every DISCOVER_EVERY-th frame also searches
-// one more square in turn, so a small person is found within DISCOVER_EVERY frames per square, then
+// Squares are searched only after the whole frame has been searched for a few frames (the first person is
+// found by the whole frame, without waiting for squares) and only while it finds fewer than `numPoses`
+// people. To keep detections coming at nearly the rate of the whole frame's, a frame searches the whole
+// frame and every square that last found someone the whole frame missed; every DISCOVER_EVERY-th frame also
+// searches one more square in turn, so a small person is found within DISCOVER_EVERY frames per square, then
 // followed every frame. Hands and faces are looked for in the whole frame only.
 import { FaceLandmarker, FilesetResolver, HandLandmarker, PoseLandmarker, type PoseLandmarkerResult } from '@mediapipe/tasks-vision';
 import { MODEL_FILES, type Detection, type Features, type PoseLandmarks, type WorkerReply, type WorkerRequest } from './detection';
 import { distinct, pixels, repeats, squareTiles, toImage, type Tile } from './tiles';
 
+/** A landmarker made in the background on its first `get`: null until it is ready. */
+class Later<T> {
+  private value: T | null = null;
+  private asked = false;
+
+  constructor(private readonly name: string, private readonly make: () => Promise<T>) {}
+
+  get(): T | null {
+    if (!this.asked) {
+      this.asked = true;
+      this.make().then((v) => { this.value = v; },
+        (err) => post({ type: 'error', message: `${this.name}: ${(err as Error).message ?? String(err)}` }));
+    }
+    return this.value;
+  }
+}
+
 interface Landmarkers {
   pose: PoseLandmarker;
-  hand: HandLandmarker;
-  face: FaceLandmarker;
-  /** A PoseLandmarker for a square, given its options (made when a wide frame first needs it). */
-  squarePose: () => Promise<PoseLandmarker>;
+  hand: Later<HandLandmarker>;
+  face: Later<FaceLandmarker>;
+  /** A PoseLandmarker for a square (made when its search is first due). */
+  squarePose: () => Later<PoseLandmarker>;
   numPoses: number;
 }
 
 /** A square of the frame and what its search found last time it ran. */
 interface Square {
-  pose: PoseLandmarker;
+  pose: Later<PoseLandmarker>;
   holdsSomeone: boolean; // found a person the whole frame missed: searched every frame
 }
 
@@ -37,6 +62,8 @@ let framesSearched = 0;
 // one discovery search in this many frames: a square costs as much as the whole frame, and searching one
 // every frame halved the detection rate under SwiftShader
 const DISCOVER_EVERY = 4;
+// whole-frame searches before the first square's: the first person is tracked without waiting for squares
+const SQUARES_FROM_FRAME = 8;
 // the page searches squares from a 16:9 frame on, where the letterbox shrinks a person to 56 %; a 4:3
 // webcam's letterbox keeps 75 %, and its two squares, each most of the frame, mostly find the same person
 // again at a third of the detection rate
@@ -57,16 +84,15 @@ async function create(wasm: string, models: string, delegate: 'CPU' | 'GPU', num
   const fileset = await FilesetResolver.forVisionTasks(wasm);
   const base = (file: string) => ({ modelAssetPath: models + file, delegate });
   const canvas = delegate === 'GPU' ? new OffscreenCanvas(1, 1) : undefined;
-  const squarePose = () => PoseLandmarker.createFromOptions(fileset,
+  const makePose = () => PoseLandmarker.createFromOptions(fileset,
     { baseOptions: base(MODEL_FILES.pose), runningMode: 'VIDEO', numPoses, canvas });
-  const [pose, hand, face] = await Promise.all([
-    squarePose(),
-    HandLandmarker.createFromOptions(fileset, { baseOptions: base(MODEL_FILES.hand), runningMode: 'VIDEO', numHands: 2, canvas }),
-    FaceLandmarker.createFromOptions(fileset, {
-      baseOptions: base(MODEL_FILES.face), runningMode: 'VIDEO', numFaces: 1, outputFaceBlendshapes: true, canvas,
-    }),
-  ]);
-  return { pose, hand, face, squarePose, numPoses };
+  const pose = await makePose();
+  const hand = new Later('hand landmarker', () => HandLandmarker.createFromOptions(fileset,
+    { baseOptions: base(MODEL_FILES.hand), runningMode: 'VIDEO', numHands: 2, canvas }));
+  const face = new Later('face landmarker', () => FaceLandmarker.createFromOptions(fileset, {
+    baseOptions: base(MODEL_FILES.face), runningMode: 'VIDEO', numFaces: 1, outputFaceBlendshapes: true, canvas,
+  }));
+  return { pose, hand, face, squarePose: () => new Later('square pose landmarker', makePose), numPoses };
 }
 
 async function init(request: Extract<WorkerRequest, { type: 'init' }>): Promise<void> {
@@ -94,10 +120,11 @@ async function bodies(marks: Landmarkers, bitmap: ImageBitmap, at: number): Prom
   const { width, height } = bitmap;
   const whole = posesOf(marks.pose.detectForVideo(bitmap, at), { x: 0, y: 0, width, height }, width, height);
   const wide = Math.max(width, height) >= WIDE * Math.min(width, height);
-  const tiles = features.tiles === false || !wide ? [] : squareTiles(width, height).slice(1);
+  const searched = framesSearched++;
+  const tiles = features.tiles === false || !wide || searched < SQUARES_FROM_FRAME ? [] : squareTiles(width, height).slice(1);
   if (!tiles.length) return { poses: whole, searches: 1 };
-  while (squares.length < tiles.length) squares.push({ pose: await marks.squarePose(), holdsSomeone: false });
-  const discover = framesSearched++ % DISCOVER_EVERY === 0;
+  while (squares.length < tiles.length) squares.push({ pose: marks.squarePose(), holdsSomeone: false });
+  const discover = searched % DISCOVER_EVERY === 0 && whole.length < marks.numPoses;
   const turn = discover ? nextSquare % tiles.length : -1;
   if (discover) nextSquare = turn + 1;
   const found: PoseLandmarks[] = [...whole];
@@ -105,9 +132,11 @@ async function bodies(marks: Landmarkers, bitmap: ImageBitmap, at: number): Prom
   for (const [k, tile] of tiles.entries()) {
     const square = squares[k];
     if (k !== turn && !square.holdsSomeone) continue;
+    const landmarker = square.pose.get();
+    if (!landmarker) continue; // still being made: searched once it is ready
     const crop = await createImageBitmap(bitmap, tile.x, tile.y, tile.width, tile.height);
     try {
-      const poses = posesOf(square.pose.detectForVideo(crop, at), tile, width, height);
+      const poses = posesOf(landmarker.detectForVideo(crop, at), tile, width, height);
       searches++;
       square.holdsSomeone = poses.some((p) => !whole.some((w) => repeats(pixels(p.image, width, height), pixels(w.image, width, height))));
       found.push(...poses);
@@ -130,14 +159,16 @@ async function detect(bitmap: ImageBitmap, t: number): Promise<Detection> {
     hands: [],
     faces: [],
   };
-  if (features.hands) {
-    const hands = landmarkers.hand.detectForVideo(bitmap, at);
+  const hand = features.hands ? landmarkers.hand.get() : null;
+  if (hand) {
+    const hands = hand.detectForVideo(bitmap, at);
     detection.hands = hands.landmarks.map((image, i) => ({
       image, world: hands.worldLandmarks[i], handedness: hands.handedness[i]?.[0]?.categoryName ?? '',
     }));
   }
-  if (features.face) {
-    const face = landmarkers.face.detectForVideo(bitmap, at);
+  const faceLandmarker = features.face ? landmarkers.face.get() : null;
+  if (faceLandmarker) {
+    const face = faceLandmarker.detectForVideo(bitmap, at);
     detection.faces = (face.faceBlendshapes ?? []).map((b) => ({
       scores: Object.fromEntries(b.categories.map((c) => [c.categoryName, c.score])),
     }));
