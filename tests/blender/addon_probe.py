@@ -3,7 +3,7 @@ enable the Kinetre add-on zip through Blender's own operators, then drive its pa
 user would, recording what Blender holds after each step. Coordinates are given back +Y up (Kinetre's axes).
 
 JOB: {"zip", "mesh", "motion", "broken", "fps", "nodes", "frames": [...], "obj": where to write the mesh the
-add-on sends, "shot": optional PNG of the panel}
+add-on sends, "shot": optional PNG of the possessed mesh}
 """
 import json
 import sys
@@ -111,28 +111,39 @@ def main():
 
 
 def shot(obj, rig, path, frame):
-    """A small render of the possessed mesh (Workbench, headless)."""
+    """A small render of the possessed mesh at `frame`, a dot at each graph node's bone (Workbench, headless:
+    the viewport's overlays, bones included, need a window)."""
     scene = bpy.context.scene
     scene.frame_set(frame)
-    lo, hi = np.min(world(obj), axis=0), np.max(world(obj), axis=0)
+    posed = world(obj)
+    lo, hi = posed.min(axis=0), posed.max(axis=0)
     centre = (lo + hi) / 2 @ Y_UP  # back to Blender's axes
     size = float(np.max(hi - lo))
+    nodes = set(obj.vertex_groups.keys())
+    for bone in rig.pose.bones:
+        if bone.name in nodes:
+            bpy.ops.mesh.primitive_ico_sphere_add(radius=0.012 * size, subdivisions=2,
+                                                  location=rig.matrix_world @ bone.head)
+            bpy.context.active_object.color = (0.1, 0.35, 0.9, 1.0)
+            bpy.context.active_object.show_in_front = True
     camera = bpy.data.objects.new("Camera", bpy.data.cameras.new("Camera"))
     scene.collection.objects.link(camera)
-    camera.location = (centre[0] + 1.6 * size, centre[1] - 1.9 * size, centre[2] + 0.9 * size)
-    direction = np.array(centre) - np.array(camera.location)
     from mathutils import Vector
-    camera.rotation_euler = Vector(direction).to_track_quat("-Z", "Y").to_euler()
+    camera.rotation_euler = Vector((1.5, -1.7, 0.6)).to_track_quat("Z", "Y").to_euler()  # looking from there
     scene.camera = camera
+    scene.render.resolution_x, scene.render.resolution_y = 560, 360
+    points = posed @ Y_UP  # Blender's axes
+    location, _ = camera.camera_fit_coords(bpy.context.evaluated_depsgraph_get(), points.ravel().tolist())
+    camera.location = Vector(location) + 0.25 * size * (Vector(location) - Vector(centre)).normalized()
     scene.render.engine = "BLENDER_WORKBENCH"
     scene.display.shading.light = "STUDIO"
     scene.display.shading.color_type = "OBJECT"
+    scene.display.shading.show_xray = True
+    scene.display.shading.xray_alpha = 0.75
     obj.color = (0.85, 0.55, 0.35, 1.0)
-    rig.show_in_front = True
-    scene.render.resolution_x, scene.render.resolution_y = 480, 320
-    scene.render.film_transparent = False
     scene.render.image_settings.file_format = "PNG"
     scene.render.image_settings.color_mode = "RGB"
+    scene.render.image_settings.compression = 100
     scene.render.filepath = path
     bpy.ops.render.render(write_still=True)
 
