@@ -70,11 +70,12 @@ def bench_skin(mesh):
 
 def many_pieces(pieces: int = 66, triangles: int = 100_000):
     """A robot of `pieces` separate parts and about `triangles` triangles: a capsule round every bone of the
-    walk's first frame (each its own piece, overlapping its neighbours at the joints) and small spheres (bolts)
-    sitting on them, no bone running through a bolt; and that skeleton frame."""
+    walk's first frame (overlapping its neighbours at the joints) and small spheres (bolts) sitting on them, no
+    bone running through a bolt; and that skeleton frame."""
     import trimesh
 
     from kinetre.mesh.load import mesh_from_trimesh
+    from kinetre.mesh.pieces import connected_pieces
     from kinetre.motion.bvh import load_bvh
     frame = load_bvh(DATA / "bvh" / "cmu_12_01_walk.bvh").frame(0)
     height = float(np.ptp(frame.positions[:, 1]))
@@ -83,19 +84,21 @@ def many_pieces(pieces: int = 66, triangles: int = 100_000):
     radius, bolt = 0.04 * height, 0.01 * height
     rng = np.random.default_rng(0)
     parts = []
-    for i in range(pieces):
-        a, b = bones[i % len(bones)]
+    for a, b in bones:  # a capsule round every bone
         pa, pb = frame.positions[a], frame.positions[b]
-        if i < len(bones):
-            part = trimesh.creation.capsule(height=float(np.linalg.norm(pb - pa)), radius=radius, count=[32, 32])
-            part.apply_transform(trimesh.geometry.align_vectors([0, 0, 1], (pb - pa) / np.linalg.norm(pb - pa)))
-            part.apply_translation(0.5 * (pa + pb))
-        else:  # a bolt on the bone's capsule, at a random point along it and round it
-            axis = (pb - pa) / np.linalg.norm(pb - pa)
-            side = np.cross(axis, rng.standard_normal(3))
-            side /= np.linalg.norm(side)
-            part = trimesh.creation.icosphere(subdivisions=3, radius=bolt)
-            part.apply_translation(pa + rng.uniform(0.2, 0.8) * (pb - pa) + (radius + 0.8 * bolt) * side)
+        part = trimesh.creation.capsule(height=float(np.linalg.norm(pb - pa)), radius=radius, count=[32, 32])
+        part.apply_transform(trimesh.geometry.align_vectors([0, 0, 1], (pb - pa) / np.linalg.norm(pb - pa)))
+        part.apply_translation(0.5 * (pa + pb))
+        parts.append(part)
+    # bolts on the capsules, at random points along them and round them, until there are `pieces` (capsules
+    # whose ends meet weld into one piece)
+    while connected_pieces((whole := trimesh.util.concatenate(parts)).vertices, whole.faces)[1] < pieces:
+        a, b = bones[rng.integers(len(bones))]
+        pa, pb = frame.positions[a], frame.positions[b]
+        side = np.cross(pb - pa, rng.standard_normal(3))
+        side /= np.linalg.norm(side)
+        part = trimesh.creation.icosphere(subdivisions=3, radius=bolt)
+        part.apply_translation(pa + rng.uniform(0.2, 0.8) * (pb - pa) + (radius + 0.8 * bolt) * side)
         parts.append(part)
     whole = trimesh.util.concatenate(parts)
     while len(whole.faces) * 4 <= triangles * 1.3:

@@ -112,18 +112,31 @@ def _boxes(vertices, labels, count):
     return lo, hi
 
 
+def _face_array(faces) -> np.ndarray:
+    """(F, 3) contiguous integer faces, as given when they already are (a mesh's int32 ones are not copied)."""
+    faces = np.asarray(faces)
+    if faces.dtype not in (np.int32, np.int64):
+        faces = faces.astype(np.int64)
+    return np.ascontiguousarray(faces.reshape(-1, 3))
+
+
 def connected_pieces(vertices: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, int]:
     """((V,) int32, count): the connected component (through faces) of every vertex, numbered by first vertex
     (the piece of vertex 0 is 0). Vertices at one place (within `WELD` of the mesh's size) count as one: a UV or
     normal seam splits a surface's vertices, not the surface."""
-    vertices = np.asarray(vertices, dtype=np.float64)
+    vertices = np.ascontiguousarray(vertices, dtype=np.float64)
     if len(vertices) == 0:
         return np.zeros(0, np.int32), 0
+    faces = _face_array(faces)
+    # welding only joins: a mesh connected through its faces alone is one piece without it
+    labels, count = _components(np.arange(len(vertices)), len(vertices), faces)
+    if count == 1:
+        return labels, count
     lo, hi = (b[0] for b in _boxes(vertices, np.zeros(len(vertices), np.int32), 1))
     size = float((hi - lo).max()) or 1.0
     keys = np.round((vertices - lo) / (WELD * size)).astype(np.int64)
     place, places = _weld(keys)
-    return _components(place, places, np.ascontiguousarray(np.asarray(faces, dtype=np.int64).reshape(-1, 3)))
+    return _components(place, places, faces)
 
 
 class MeshPieces:
@@ -141,7 +154,7 @@ class MeshPieces:
 
     def __init__(self, vertices: np.ndarray, faces: np.ndarray):
         self._vertices = np.ascontiguousarray(vertices, dtype=np.float64)
-        self._faces = np.ascontiguousarray(np.asarray(faces, dtype=np.int64).reshape(-1, 3))
+        self._faces = _face_array(faces)
         self.of_vertex, self.count = connected_pieces(self._vertices, self._faces)
         self.of_vertex.flags.writeable = False
         self._hosts: dict[int, int] = {}
@@ -149,11 +162,8 @@ class MeshPieces:
             self._vertex_order, self._vertex_start = _group(self.of_vertex, self.count)
             self._face_order, self._face_start = _group(self.of_vertex[self._faces[:, 0]], self.count)
             self.lo, self.hi = _boxes(self._vertices, self.of_vertex, self.count)
-        else:
-            self._vertex_order = np.arange(len(self._vertices))
-            self._vertex_start = np.array([0, len(self._vertices)])
-            self._face_order = np.arange(len(self._faces))
-            self._face_start = np.array([0, len(self._faces)])
+        else:  # one piece (or none): its vertices and faces are all of them, in order
+            self._vertex_order = self._face_order = None
             self.lo, self.hi = _boxes(self._vertices, self.of_vertex, max(self.count, 1))
         for a in (self.lo, self.hi):
             a.flags.writeable = False
@@ -173,10 +183,14 @@ class MeshPieces:
 
     def vertices_of(self, piece: int) -> np.ndarray:
         """(k,) int64: the vertices of `piece`, ascending."""
+        if self._vertex_order is None:
+            return np.arange(len(self._vertices)) if piece == 0 else np.zeros(0, np.int64)
         return self._vertex_order[self._vertex_start[piece]:self._vertex_start[piece + 1]]
 
     def faces_of(self, piece: int) -> np.ndarray:
-        """(k, 3) int64: the triangles of `piece`, in the mesh's order."""
+        """(k, 3) int: the triangles of `piece`, in the mesh's order."""
+        if self._face_order is None:
+            return self._faces if piece == 0 else self._faces[:0]
         return self._faces[self._face_order[self._face_start[piece]:self._face_start[piece + 1]]]
 
     def contact_hosts(self, which: np.ndarray) -> np.ndarray:
