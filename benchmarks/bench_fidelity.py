@@ -30,6 +30,10 @@ Methods (the `method` field):
   with ARMATURE_AUTO, compared with Blender's own evaluation of the artist skin (`reference_check_pct`:
   Blender's artist skin against the player's, the mean over the compared frames).
 
+Besides the public avatars, two synthetic characters with a known walk (tests/rigs.py) stand for the rigs
+the public set lacks: a chibi game rig (`chibi`: root on the floor, hands straight off the chest, sockets)
+and an eight-legged creature (`spider`); `--avatar chibi` or `--avatar spider` runs one of them.
+
 One avatar and clip from the command line, for quick iteration:
     python benchmarks/bench_fidelity.py --avatar ../shared/data/avatars/CesiumMan.glb --anim 0 --frames 20
 """
@@ -52,10 +56,12 @@ HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE.parent / "tests"))
 from export.fidelity import Clip, errors, figures  # noqa: E402  (the independent player's measures)
 from export.gltf_player import GltfFile  # noqa: E402
+import rigs  # noqa: E402  (synthetic rigs with a known walk)
 
 DATA = HERE.parent / ".." / "shared" / "data"
 AVATARS = {"robot_quaternius": "humanoid", "CesiumMan": "humanoid", "RiggedFigure": "humanoid",
            "Fox": "quadruped"}
+SYNTHETIC = {"chibi": ("humanoid", lambda: rigs.chibi(40)), "spider": ("other", lambda: rigs.legged_creature(8, 40))}
 FRAMES = 30               # compared frames per clip
 TARGETS = {"mean_pct": 1.2, "p95_pct": 5.0, "worst_frame_pct": 3.0}
 CLIP_MEAN_TARGET = {"Robot_Dance": 2.5}
@@ -157,7 +163,8 @@ def blender_rows(clips: list[Clip], kind: str, work: Path) -> list[dict]:
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--avatar", type=Path, help="one rigged .glb (default: every public avatar)")
+    ap.add_argument("--avatar", help="one rigged .glb, or chibi / spider (default: every public avatar and both "
+                                     "synthetic ones)")
     ap.add_argument("--anim", action="append", help="animation name or index (repeatable; default: every one)")
     ap.add_argument("--kind", default=None, choices=("humanoid", "quadruped", "other"),
                     help="what --avatar is (default: humanoid)")
@@ -167,11 +174,16 @@ def main() -> None:
     ap.add_argument("--animate-args", default="", help="extra `kinetre animate` arguments, e.g. '--nodes 256'")
     args = ap.parse_args()
     methods = set(args.methods.split(","))
-    todo = [(args.avatar, args.kind or "humanoid")] if args.avatar else \
-        [(DATA / "avatars" / f"{name}.glb", kind) for name, kind in AVATARS.items()]
+    todo = [(name, kind) for name, (kind, _) in SYNTHETIC.items() if name == args.avatar] if args.avatar in SYNTHETIC \
+        else [(Path(args.avatar), args.kind or "humanoid")] if args.avatar else \
+        [(DATA / "avatars" / f"{name}.glb", kind) for name, kind in AVATARS.items()] + \
+        [(name, kind) for name, (kind, _) in SYNTHETIC.items()]
     with tempfile.TemporaryDirectory(prefix="kinetre-fidelity-") as tmp:
         work = Path(tmp)
         for path, kind in todo:
+            if path in SYNTHETIC:
+                rigs.write_glb(SYNTHETIC[path][1](), work / f"{path}.glb")
+                path = work / f"{path}.glb"
             player = GltfFile(path)
             names = args.anim or [a.name or str(i) for i, a in enumerate(player.doc.animations)]
             clips = [Clip(player, anim, args.frames) for anim in names]

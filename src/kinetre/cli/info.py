@@ -27,7 +27,7 @@ def cmd_info(args) -> int:
         _info_take(read_stream(path), "recorded take")
     elif low.endswith(VIDEO_EXTS):
         _info_video(path)
-    elif split_animation(path)[0].lower().endswith((".glb", ".gltf", ".vrm")):
+    elif split_animation(path)[0].lower().endswith((".glb", ".gltf", ".vrm", ".vrma")):
         _info_gltf(path)
     else:
         _info_mesh(path)
@@ -38,7 +38,7 @@ def _info_gltf(ref: str) -> None:
     """A glTF: its mesh (if any), its avatar map when it is skinned, its animations (each usable as
     `--motion FILE#NAME`) and the map of the skeleton they move."""
     import kinetre
-    from ..motion.gltf import animation_skeleton, animations, load_gltf, split_animation
+    from ..motion.gltf import animation_skeleton, animation_vrm_bones, animations, load_gltf, split_animation
     path, frag = split_animation(ref)
     anims = animations(path)
     try:
@@ -57,7 +57,7 @@ def _info_gltf(ref: str) -> None:
     for a in anims:
         print(f"    #{a.index} {a.name}: {a.duration:.2f} s, {a.channels} channels")
     names, parents, rest, tips = animation_skeleton(path, frag)
-    _print_motion_map(names, parents, rest, f"--motion {os.path.basename(ref)}", tips)
+    _print_motion_map(names, parents, rest, f"--motion {os.path.basename(ref)}", tips, animation_vrm_bones(path, frag))
 
 
 def _info_avatar(path: str) -> None:
@@ -81,9 +81,9 @@ def _info_avatar(path: str) -> None:
     _print_map(bonemap)
 
 
-def _print_motion_map(names, parents, rest, usage: str, tips: int = 0) -> None:
+def _print_motion_map(names, parents, rest, usage: str, tips: int = 0, vrm: dict | None = None) -> None:
     from ..skeleton.humanoid_map import map_humanoid, not_humanoid
-    hmap = map_humanoid(names, parents, rest, tips=tips)
+    hmap = map_humanoid(names, parents, rest, vrm=vrm or None, tips=tips)
     why = not_humanoid(hmap, rest)
     if why:
         print(f"  Kinect-20 map: none ({why}): {usage} drives a mesh by its own bones")

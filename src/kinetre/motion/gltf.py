@@ -28,7 +28,8 @@ from ..skeleton.tips import part_end, part_tips
 from .bvh import kinect_take, upright
 from .take import Take
 
-GLTF_EXTS = (".glb", ".gltf")
+GLTF_EXTS = (".glb", ".gltf", ".vrma")
+VRMA = "VRMC_vrm_animation"  # a VRM Animation's extension: humanoid bone name -> node
 _PATHS = {"translation": 3, "rotation": 4, "scale": 3}
 
 
@@ -298,8 +299,11 @@ def skeleton_nodes(d: GltfDocument, anim_index: int | None,
     order, parent = _node_order(doc, d.path)
     joints = {j for s in doc.skins or [] for j in s.joints or []}
     if not joints and anim_index is not None:
+        # a VRM Animation's expression nodes carry face weights, not bones
+        faces = {e.get("node") for group in (_vrma(d).get("expressions") or {}).values() if isinstance(group, dict)
+                 for e in group.values() if isinstance(e, dict)}
         targets = {c.target.node for c in doc.animations[anim_index].channels
-                   if c.target is not None and c.target.node is not None}
+                   if c.target is not None and c.target.node is not None and c.target.node not in faces}
         for i in order:
             if i in targets or parent.get(i) in joints:
                 joints.add(i)
@@ -357,6 +361,27 @@ def animation_skeleton(path: str | os.PathLike, animation: str | int | None = No
     return _mapped_skeleton(d, info.index)
 
 
+def animation_vrm_bones(path: str | os.PathLike, animation: str | int | None = None) -> dict:
+    """VRM humanoid bone name -> joint index of `animation_skeleton`'s skeleton (a VRM Animation's; else {})."""
+    path, frag = split_animation(path)
+    d = read_gltf(path, BadMotionError)
+    info = _pick(animations(d), frag if animation is None else animation, path)
+    return vrm_bones(d, skeleton_nodes(d, info.index, handles=True)[0])
+
+
+def vrm_bones(d: GltfDocument, nodes: list[int]) -> dict:
+    """VRM humanoid bone name -> joint index, from a VRM Animation's `VRMC_vrm_animation.humanoid` (empty
+    for other files)."""
+    bones = (_vrma(d).get("humanoid") or {}).get("humanBones") or {}
+    index = {j: k for k, j in enumerate(nodes)}
+    return {b: index[v["node"]] for b, v in bones.items() if isinstance(v, dict) and v.get("node") in index}
+
+
+def _vrma(d: GltfDocument) -> dict:
+    ext = (d.doc.extensions or {}).get(VRMA)
+    return ext if isinstance(ext, dict) else {}
+
+
 def _mapped_skeleton(d: GltfDocument, index: int):
     nodes, names, parents, rest = _skeleton(d, index, handles=True)
     ends = _tips(d, nodes, parents, names)
@@ -402,7 +427,8 @@ def load_gltf(path: str | os.PathLike, animation: str | int | None = None, fps: 
     own = _own_take(d, info.index, world, float(fps), source)
     if as_kinect:
         names, parents, rest, tips = _mapped_skeleton(d, info.index)
-        hmap = take_map(names, parents, rest, tips=tips)
+        vrm = vrm_bones(d, skeleton_nodes(d, info.index, handles=True)[0])
+        hmap = take_map(names, parents, rest, tips=tips, vrm=vrm or None)
         if hmap is not None:
             mapped = _own_take(d, info.index, world, float(fps), source, handles=True, tips="end" if tips else "")
             return kinect_take(hmap, mapped, upright(hmap, rest), native=own)

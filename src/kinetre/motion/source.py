@@ -24,7 +24,7 @@ __all__ = ["Take", "READERS", "load_take", "resample"]
 # Extension -> reader(path, **options); compound extensions are matched first.
 READERS = {".kinetre.jsonl": read_stream, ".jsonl": read_stream, ".bvh": load_bvh,
            ".mp4": capture_video, ".mov": capture_video, ".avi": capture_video, ".mkv": capture_video,
-           ".webm": capture_video, ".glb": load_gltf, ".gltf": load_gltf}
+           ".webm": capture_video, ".glb": load_gltf, ".gltf": load_gltf, ".vrma": load_gltf}
 _TAKES_OPTIONS = {load_bvh, load_gltf}  # readers that accept keyword options
 
 

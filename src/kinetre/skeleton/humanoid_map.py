@@ -344,11 +344,12 @@ def _one_bone_arms(found, how, parents, p, ends) -> None:
                 del found["Hand" + side], how["Hand" + side]
 
 
-def take_map(names, parents, rest: np.ndarray | None, fixed: dict | None = None, tips: int = 0) -> HumanoidMap | None:
+def take_map(names, parents, rest: np.ndarray | None, fixed: dict | None = None, tips: int = 0,
+             vrm: dict | None = None) -> HumanoidMap | None:
     """The map a motion source is turned into Kinect-20 by, or None when its skeleton is not a humanoid
     (no hip centre, mapped or derived; no limb chain; more than two legs; or legs that do not continue its
     spine: an animal then drives a mesh by its own bones). Without `rest`, names and topology alone decide."""
-    hmap = map_humanoid(names, parents, np.zeros((len(names), 3)) if rest is None else rest, fixed=fixed,
+    hmap = map_humanoid(names, parents, np.zeros((len(names), 3)) if rest is None else rest, vrm=vrm, fixed=fixed,
                         tips=tips)
     return None if not_humanoid(hmap, rest) else hmap
 
