@@ -119,7 +119,10 @@ def check_humanoid(avatar: Avatar, bonemap: BoneMap) -> None:
 def describe(avatar: Avatar, bonemap: BoneMap) -> str:
     """One line: Kinect joint <- avatar joint (how), then what does not map, for `kinetre avatar` and the studio."""
     text = _describe(avatar, bonemap)
-    return text + (f"; not mapped: {', '.join(bonemap.missing)}" if bonemap.missing else "")
+    derived = [kj for kj in bonemap.missing if kj in bonemap.derived]
+    lost = [kj for kj in bonemap.missing if kj not in bonemap.derived]
+    return text + (f"; derived (from where parts end, or between joints): {', '.join(derived)}" if derived else "") + \
+        (f"; not mapped: {', '.join(lost)}" if lost else "")
 
 
 def _describe(avatar, bonemap):
