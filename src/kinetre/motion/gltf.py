@@ -31,6 +31,7 @@ from .take import Take
 GLTF_EXTS = (".glb", ".gltf", ".vrma")
 VRMA = "VRMC_vrm_animation"  # a VRM Animation's extension: humanoid bone name -> node
 _PATHS = {"translation": 3, "rotation": 4, "scale": 3}
+MAX_FRAMES = 1 << 21  # frames a take may have: over 19 hours at 30 fps
 
 
 @dataclass(frozen=True)
@@ -420,6 +421,9 @@ def load_gltf(path: str | os.PathLike, animation: str | int | None = None, fps: 
         raise BadMotionError(f"{path}: fps must be a positive number, got {fps!r}")
     d = read_gltf(path, BadMotionError)
     info = _pick(animations(d), animation, path)
+    if not info.duration * fps < MAX_FRAMES:  # a bent keyframe time would ask for billions of frames
+        raise BadMotionError(f"{path}: animation {info.name!r} lasts {info.duration:.4g} s, over {MAX_FRAMES} "
+                             f"frames at {fps:g} fps")
     count = int(math.floor(info.duration * fps + 1e-6)) + 1
     t = info.start + np.arange(count) / fps
     world = world_matrices(d, info.index, t)
