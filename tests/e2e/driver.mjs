@@ -4,7 +4,7 @@
 // The fake camera plays a person video (a y4m file), the fake microphone a WAV file, both on a loop.
 import { mkdirSync } from 'node:fs';
 import { join, resolve } from 'node:path';
-import { launchWithCamera, report, state, until } from './harness.mjs';
+import { launchWithCamera, moreTransforms, pageNow, report, shownAfter, state, until, watchTransforms } from './harness.mjs';
 
 const config = JSON.parse(process.argv[2]);
 const result = { scenario: config.scenario, steps: [] };
@@ -21,6 +21,7 @@ async function open(browser, name) {
   page.on('console', (m) => { if (m.type() === 'error') log(`${name}: console error`, { message: m.text() }); });
   await page.goto(config.url + (config.query ?? ''));
   await page.waitForFunction(() => window.kinetre && window.kinetre.state().meshId !== null, null, { timeout: 60000 });
+  await watchTransforms(page);
   return page;
 }
 
@@ -61,8 +62,7 @@ async function startCamera(page, name) {
 async function possess(page, name, subset = null) {
   await page.bringToFront(); // the other user's page was last in front
   if (subset) await page.selectOption('#subset', subset);
-  await page.keyboard.press('f');
-  await page.waitForTimeout(300);
+  await page.keyboard.press('f'); // the server takes Fit, then Possess, in the order sent
   await page.keyboard.press('p');
   await until(page, () => window.kinetre.state().possessing || document.querySelector('#message').className === 'error',
     null, 60000);
@@ -98,10 +98,10 @@ async function single() {
 
     // record a take while possessed and download it as GLB
     await page.keyboard.press(' ');
-    await until(page, () => window.kinetre.state().recording, null, 10000);
-    await page.waitForTimeout(2500);
+    await until(page, () => window.kinetre.state().recording, null, 30000);
+    await moreTransforms(page, 15); // poses solved while recording (the take keeps each)
     await page.keyboard.press(' ');
-    await page.waitForSelector('#downloads a.download', { timeout: 60000 });
+    await page.waitForSelector('#downloads a.download', { timeout: 240000 }); // the take exported
     const [download] = await Promise.all([
       page.waitForEvent('download'),
       page.click('#downloads a:has-text("GLB")'),
@@ -113,10 +113,11 @@ async function single() {
     result.downloads = await page.$$eval('#downloads a', (links) => links.map((a) => [a.textContent, a.getAttribute('download')]));
     log('take downloaded');
 
+    const released = await pageNow(page);
     await page.keyboard.press('r');
-    await until(page, () => !window.kinetre.state().possessing, null, 30000);
+    await until(page, () => !window.kinetre.state().possessing, null, 60000);
+    await shownAfter(page, released); // the rest pose the server shows once it let go
     log('released');
-    await page.waitForTimeout(800);
     result.releasedSpread = spread(await watchVertices(page, 3));
 
     // voice: the fake microphone says "possess" on a loop

@@ -12,7 +12,7 @@ const result = { steps: [] };
 const t0 = Date.now();
 const log = (step, extra = {}) => result.steps.push({ step, s: (Date.now() - t0) / 1000, ...extra });
 const avatar = (page) => page.evaluate(() => window.kinetre.state().avatar);
-const waitFor = (page, fn, arg, timeout = 60000) => page.waitForFunction(fn, arg, { timeout, polling: 250 });
+const waitFor = (page, fn, arg, timeout = 120000) => page.waitForFunction(fn, arg, { timeout, polling: 250 });
 
 function spread(samples) {
   let best = 0;
@@ -53,10 +53,11 @@ await report(result, async () => {
   }, config.frame);
 
   await page.keyboard.press(' ');
-  await waitFor(page, () => window.kinetre.state().avatar.recording, null, 10000);
-  await page.waitForTimeout(2500);
+  await waitFor(page, () => window.kinetre.state().avatar.recording, null, 30000);
+  const recordedFrom = (await avatar(page)).driven; // the take: while the avatar is driven 10 more times
+  await waitFor(page, (n) => window.kinetre.state().avatar.driven >= n, recordedFrom + 10);
   await page.keyboard.press(' ');
-  await page.waitForSelector('#downloads a:has-text("avatar GLB")', { timeout: 60000 });
+  await page.waitForSelector('#downloads a:has-text("avatar GLB")', { timeout: 240000 }); // the take exported
   result.downloads = await page.$$eval('#downloads a', (links) => links.map((a) => [a.textContent, a.getAttribute('href')]));
   log('avatar take recorded');
 

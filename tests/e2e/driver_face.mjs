@@ -49,7 +49,7 @@ async function face() {
     result.rate = await faceState(page);
     // a caricature preset from the panel; its effect measured on one frame (no tracking update between)
     await page.selectOption('#face-preset', 'big eyes');
-    await page.waitForTimeout(300);
+    await page.waitForFunction(() => window.kinetreFace.state().weights.some((w) => w !== 0), null, { timeout: 60000 });
     result.caricature = await faceState(page);
     result.morphEffect = await page.evaluate(() => {
       const face = window.kinetreFace.face;
@@ -60,9 +60,11 @@ async function face() {
       return { plain, morphed: window.kinetreFace.state().vertices };
     });
     await page.screenshot({ path: join(config.artifacts, 'face-big-eyes.png') });
-    // a face take: record ~3 s, the server exports a GLB
+    // a face take: record while the face is tracked in 8 more frames, the server exports a GLB
+    const recordedFrom = (await faceState(page)).tracked;
     await page.click('#face-record');
-    await page.waitForTimeout(3000);
+    await page.waitForFunction((n) => window.kinetreFace.state().tracked >= n, recordedFrom + 8,
+      { timeout: 180000, polling: 250 });
     await page.click('#face-record');
     await page.waitForFunction(() => window.kinetreFace.state().take !== null
       || document.querySelector('#message').className === 'error', null, { timeout: 120000 });
@@ -84,7 +86,10 @@ async function face() {
       // an avatar dropped on the page: the face rides on its neck
       await page.setInputFiles('#file', config.avatar);
       await page.waitForFunction(() => window.kinetre.state().avatar.ready, null, { timeout: 120000, polling: 250 });
-      await page.waitForTimeout(500);
+      // the face placed on the avatar's neck from a frame tracked since
+      const ready = (await faceState(page)).tracked;
+      await page.waitForFunction((n) => window.kinetreFace.state().anchor === 'avatar'
+        && window.kinetreFace.state().tracked >= n, ready + 2, { timeout: 120000, polling: 250 });
       result.onAvatar = await page.evaluate(() => {
         const s = window.kinetreFace.state();
         const at = (j) => {

@@ -115,7 +115,9 @@ async function possessBoth(page, meshes = null) {
   await page.keyboard.press('p');
   await until(page, (want) => {
     const s = window.kinetre.state();
-    return (s.personUsers.length >= 2 && s.personUsers.every((p) => p.possessing && (!want || p.mesh === want[p.id])))
+    // acknowledged: the server says each user possesses their mesh, and that mesh is rigged with them
+    const rigged = (p) => (s.meshes.find((m) => m.id === p.mesh)?.possessors ?? []).includes(p.user);
+    return (s.personUsers.length >= 2 && s.personUsers.every((p) => p.possessing && rigged(p) && (!want || p.mesh === want[p.id])))
       || document.querySelector('#message').className === 'error';
   }, meshes, 120000).catch((e) => log('possess not acknowledged', { error: String(e) }));
   return state(page);
@@ -146,8 +148,9 @@ async function horse() {
     // ids over the clip: the same two people keep the same two ids
     const seen = new Set();
     let views = 0;
-    const end = Date.now() + (config.watch ?? 6) * 1000;
-    while (Date.now() < end) {
+    // at least `watch` seconds and ten looks with people in view (fewer fit in the time on a loaded machine)
+    const end = Date.now() + (config.watch ?? 6) * 1000, bound = Date.now() + 180000;
+    while ((Date.now() < end || views < 10) && Date.now() < bound) {
       const s = await state(page);
       s.people.forEach((id) => seen.add(id));
       if (s.people.length) views++;
@@ -235,7 +238,8 @@ async function meshes() {
     // Fit then Possess at once, as a dancer would (the server takes them in order; MediaPipe's depth of a
     // small figure can jump by a metre between the two); after a refusal Release, and again, up to four times
     let s = null;
-    const done = (x) => x && x.personUsers.every((p) => p.possessing && p.mesh === meshOf[p.id]);
+    const done = (x) => x && x.personUsers.every((p) => p.possessing && p.mesh === meshOf[p.id]
+      && (x.meshes.find((m) => m.id === p.mesh)?.possessors ?? []).includes(p.user));
     for (let attempt = 0; attempt < 4 && !done(s); attempt++) {
       if (attempt) {
         await page.keyboard.press('r');

@@ -5,14 +5,14 @@
 //   node driver_physics.mjs '{"url": "...", "audio": "reset.wav", "artifacts": "...", "out": "video.webm"}'
 import { mkdirSync, writeFileSync } from 'node:fs';
 import { join, resolve } from 'node:path';
-import { chromium, report } from './harness.mjs';
+import { chromium, moreTransforms, pageNow, report, shownAfter, watchTransforms } from './harness.mjs';
 
 const config = JSON.parse(process.argv[2]);
 const result = { steps: [] };
 const t0 = Date.now();
 const log = (step, extra = {}) => result.steps.push({ step, s: (Date.now() - t0) / 1000, ...extra });
 const physics = (page) => page.evaluate(() => window.kinetre.state().physics);
-const until = async (page, predicate, arg, timeout = 60000) =>
+const until = async (page, predicate, arg, timeout = 120000) =>
   (await page.waitForFunction(predicate, arg, { timeout, polling: 200 })).jsonValue();
 
 async function shot(page, file) {
@@ -44,10 +44,12 @@ async function run() {
     page.on('pageerror', (e) => log('page error', { message: String(e) }));
     await page.goto(`${config.url}/?noshadows&physics=tower`);
     await until(page, () => window.kinetre && window.kinetre.state().physics.boxes.length === 20);
+    await watchTransforms(page);
     // stop the sample walk: a possessed mesh follows its skeleton, wherever the placement puts it
+    const stopped = await pageNow(page);
     await page.keyboard.press('m');
     await until(page, () => !window.kinetre.state().users.some((u) => u.possessing));
-    await page.waitForTimeout(500);
+    await shownAfter(page, stopped); // the cow shown at rest
     const built = (await physics(page)).resets;
     await page.keyboard.press('x'); // the tower beside the cow at rest
     await until(page, (n) => window.kinetre.state().physics.resets > n, built);
@@ -57,10 +59,10 @@ async function run() {
     await shot(page, 'physics-tower.png');
 
     await dragRight(page);
-    await until(page, () => window.kinetre.state().physics.knockedDown >= 10);
-    await page.waitForTimeout(1500); // let them land
+    const knocked = await until(page, () => { const p = window.kinetre.state().physics; return p.knockedDown >= 10 && p.steps; });
+    await until(page, (n) => window.kinetre.state().physics.steps >= n, knocked + 90); // let them land: 1.5 s simulated
     await page.keyboard.press('o'); // show the spheres
-    await page.waitForTimeout(300);
+    await until(page, () => window.kinetre.state().physics.showSpheres);
     const hit = await physics(page);
     result.hit = { knockedDown: hit.knockedDown, boxes: hit.boxes, showSpheres: hit.showSpheres, proxies: hit.proxies };
     log('boxes knocked down', { knockedDown: hit.knockedDown });
@@ -95,9 +97,10 @@ async function run() {
     await page.keyboard.press('m');
     await until(page, () => window.kinetre.state().users.some((u) => u.possessing));
     await page.keyboard.press(' ');
-    await page.waitForTimeout(1500);
+    await until(page, () => window.kinetre.state().recording);
+    await moreTransforms(page, 30); // poses solved while recording (the take keeps each)
     await page.keyboard.press(' ');
-    await until(page, () => !document.querySelector('#physics-replay').disabled, null, 60000);
+    await until(page, () => !document.querySelector('#physics-replay').disabled, null, 240000);
     await page.click('#physics-replay');
     const replay = await until(page, () => window.kinetre.state().physics.lastReplay, null, 240000);
     result.replay = replay;

@@ -23,7 +23,7 @@ await report(result, async () => {
     null, 60000);
   // a hand the worker missed in the newest frame is refused: show it again, as a user would, up to 4 times
   for (let attempt = 0; attempt < 4 && !(await state(page)).possessing; attempt++) {
-    if (attempt) await page.waitForTimeout(1500);
+    if (attempt) await until(page, () => window.kinetre.state().handsSeen[1], null, 120000); // the hand in view again
     await page.evaluate(() => { document.querySelector('#message').className = ''; });
     await page.keyboard.press('p');
     await until(page, () => {

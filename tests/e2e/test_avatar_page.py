@@ -43,7 +43,7 @@ def test_an_avatar_in_the_studio_page(data_dir, tmp_path):
         saved_map = httpx.get(url + "/" + result["mapLink"], timeout=30).json()
     finally:
         proc.terminate()
-        proc.wait(10)
+        proc.wait(60)
 
     steps = {s["step"]: s for s in result["steps"]}
     assert steps["avatar driven"]["source"] == "sample"
@@ -97,7 +97,7 @@ def test_a_real_camera_drives_an_avatars_fingers_and_expressions(data_dir, tmp_p
                                             "out": str(HERE / "artifacts" / "hands-face.json")}, 600)
     finally:
         proc.terminate()
-        proc.wait(10)
+        proc.wait(60)
     assert r["seen"]["hands"] >= 6 and r["seenBodyOnly"]["hands"] == 0 and r["seenBodyOnly"]["faces"] == 0
     names = sorted(r["bodyOnly"][0]["fingerBones"])
     assert len(names) == 30  # ten fingers of four joints, three bones, found by name below the elbows

@@ -45,7 +45,7 @@ def page_url():
     proc, url = start_server(nodes=64, sample_motion=False)
     yield url
     proc.terminate()
-    proc.wait(10)
+    proc.wait(60)
 
 
 @pytest.fixture(scope="module")

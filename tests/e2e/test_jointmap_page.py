@@ -22,7 +22,7 @@ def test_joint_map_upload_shows_and_clears(tmp_path):
         result = run_driver("driver_rigs.mjs", config, 300)
     finally:
         proc.terminate()
-        proc.wait(10)
+        proc.wait(60)
     assert result["errors"] == []
     assert "bad.json: sources[0]: unknown key(s) ofset" in result["badMessage"]
     assert result["shown"] == "two-people-horse.json: 2 sources" and result["clearVisible"]

@@ -36,7 +36,7 @@ def test_boxes_fall_reset_dodgeball_and_replay_to_video(reset_wav, tmp_path):
         r = run_driver("driver_physics.mjs", config, 400)
     finally:
         proc.terminate()
-        proc.wait(10)
+        proc.wait(60)
 
     start, hit = r["start"], r["hit"]
     assert start["spheres"] > 20 and len(start["boxes"]) == 20

@@ -32,7 +32,7 @@ def test_the_right_hand_possesses_the_mesh_from_the_page(tmp_path):
                        600)
     finally:
         proc.terminate()
-        proc.wait(10)
+        proc.wait(60)
     assert r["errors"] == [] and r["chosen"] == "right"
     me = r["me"]
     assert me is not None and me["possessing"] and me["hand"] == "right", r["message"]

@@ -32,7 +32,7 @@ def studio_page():
     proc, url = start_server(nodes=128, sample_motion=True)
     yield url
     proc.terminate()
-    proc.wait(10)
+    proc.wait(60)
 
 
 @pytest.fixture(scope="module")
