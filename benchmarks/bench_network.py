@@ -311,7 +311,7 @@ async def load(base: str, token: str | None, frames, pids: dict, captures=CAPTUR
     sent = sum(c.sent for c in caps)
     merged, late = state["dropped"]["merged"], state["dropped"]["late"]
     return {
-        "captures": captures, "viewers": viewers, "nodes": state["mesh"]["nodes"], "seconds": seconds,
+        "captures": captures, "viewers": viewers, "nodes": state["meshes"][0]["nodes"], "seconds": seconds,
         "latency_median_ms": round(float(np.median(lat)), 2), "latency_p99_ms": round(float(np.percentile(lat, 99)), 2),
         "latency_samples": int(lat.size),
         # the same latency in two parts, at the scene's publish time t_out: capture → solved and published

@@ -24,7 +24,7 @@ async function shot(page, file) {
 function dragRight(page) {
   return page.evaluate(async () => {
     const studio = window.kinetre.studio;
-    const p = studio.state.placement;
+    const p = studio.state.meshes[0].placement;
     for (let i = 1; i <= 40; i++) {
       studio.socket.send({ type: 'place', scale: p.scale, position: [p.position[0] + 0.045 * i, p.position[1], p.position[2]], yaw: p.yaw });
       await new Promise((r) => setTimeout(r, 75));

@@ -68,7 +68,7 @@ def test_two_people_in_one_camera_carry_the_two_halves_of_one_mesh(two_people, t
 
 
 def test_two_people_each_possess_a_mesh_of_their_own(two_people, tmp_path):
-    """Person A keeps the default mesh, person B is given the mesh added from the page: each mesh is possessed
+    """Person A keeps the first mesh, person B is given the mesh added from the page: each mesh is possessed
     by its own person only, and both move, each where its person dances."""
     proc, url = start_server(None, nodes=32, sample_motion=False)
     try:

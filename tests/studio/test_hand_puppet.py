@@ -66,7 +66,7 @@ def test_a_right_hand_possesses_the_creature_and_walks_its_legs(creature_studio)
                 await page.send(hand_frame(4 + k, curl, t))
                 await page.wait(lambda c: c.transforms[2] == t, 60)
                 blocks.append(page.transforms[4].astype(np.float64))
-            return attached, page.state["mesh"]["id"], blocks
+            return attached, page.state["meshes"][0]["id"], blocks
 
     attached, mesh_id, (bind, index, little) = asyncio.run(go())
     assert attached >= 10, f"{attached} of the hand's 21 joints attached"

@@ -17,7 +17,7 @@ from kinetre.studio.channels import Frame, Hub
 from kinetre.studio.meshes import data_path, prepare_mesh
 from kinetre.studio.protocol import SkeletonFrame, person_client
 from kinetre.studio.scene import MeshError, Scene
-from kinetre.studio.subjects import MESH_TRANSFORMS, TRANSFORMS, transforms_subject
+from kinetre.studio.subjects import TRANSFORMS, transforms_subject
 from kinetre.wire.transforms import unpack_transforms
 
 
@@ -44,7 +44,7 @@ def test_each_user_drives_only_the_mesh_it_possesses(two_meshes, walk):
     (spot, spot_graph), (horse, horse_graph) = two_meshes
     hub = Hub()
     blocks = []
-    hub.subscribe(TRANSFORMS, MESH_TRANSFORMS).direct = lambda f: blocks.append((f.subject, f.data)) or True
+    hub.subscribe(TRANSFORMS).direct = lambda f: blocks.append((f.subject, f.data)) or True
     a0, b0 = walk[0], moved(walk[0], [2.5, 0, 0])  # two people 2.5 m apart
 
     async def go():
@@ -94,7 +94,7 @@ def test_each_user_drives_only_the_mesh_it_possesses(two_meshes, walk):
     s1, s2, out = after_one
     assert s1[0] == pytest.approx(0.2, abs=0.04) and abs(s1[2]) < 0.04
     assert np.abs(s2).max() < 1e-6  # rest (float32 skinning)
-    assert [(subject, unpack_transforms(b)[1]) for subject, b in out] == [(TRANSFORMS, one)]
+    assert [(subject, unpack_transforms(b)[1]) for subject, b in out] == [(transforms_subject(one), one)]  # every mesh on a subject of its own
     # then the second mesh follows b, 15 cm along -z; the first keeps its pose
     t1, t2, out = after_two
     np.testing.assert_allclose(t1, s1, atol=1e-6)
@@ -155,7 +155,7 @@ def test_the_studio_adds_a_mesh_each_person_possesses_one_and_removing_it_lets_g
         status = wait_job(studio, httpx.post(f"{studio}/api/mesh?name=horse.obj&add=1", content=horse).json()["job"])
         state = httpx.get(f"{studio}/api/state").json()
         one, two = [m["id"] for m in state["meshes"]]
-        assert status["mesh"] == two and state["mesh"]["id"] == one and state["meshes"][1]["name"] == "horse.obj"
+        assert status["mesh"] == two and state["meshes"][0]["id"] == one and state["meshes"][1]["name"] == "horse.obj"
         assert httpx.get(f"{studio}/api/mesh/{two}").json()["id"] == two
         for method, path, code, text in (("GET", "/api/mesh/9", 404, "mesh 9 is not loaded"),
                                           ("DELETE", "/api/mesh/9", 404, "no mesh 9 in the scene (its meshes: 1, 2)"),

@@ -110,9 +110,9 @@ def test_scene_process_solves_what_a_local_scene_solves(network, walk):
             await c.send(frame_message(2, walk[10], t=t1))
             await wait_for(c, t1)
             block = next(b for t, b in c.blocks if t == t1)
-            nodes = c.state["mesh"]["nodes"]
+            nodes = c.state["meshes"][0]["nodes"]
             async with httpx.AsyncClient(base_url=url, params={"token": A}) as http:
-                mesh = (await http.get(c.state["mesh"]["url"])).json()  # fetched from the scene over NATS
+                mesh = (await http.get(c.state["meshes"][0]["url"])).json()  # fetched from the scene over NATS
             return block, nodes, mesh
 
     block, nodes, mesh = asyncio.run(remote())
@@ -146,7 +146,7 @@ def test_studio_with_its_own_scene_on_nats(network, walk):
 
     async def go():
         bus = await NatsChannels.connect(nats_url, "b", B)
-        seen = bus.subscribe("kinetre.transforms")
+        seen = bus.subscribe("kinetre.transforms.*")
         await bus.ready()
         async with StudioClient(url, B) as page:
             await possess(page, walk[0])  # page → studio → NATS → the studio's scene → NATS → studio → page
@@ -161,9 +161,9 @@ def test_studio_with_its_own_scene_on_nats(network, walk):
             while (frame := await seen.next(10)) is not None:
                 if unpack_transforms(frame.data)[2] == t1:
                     await bus.close()
-                    return block, frame.data, page.state["mesh"]["nodes"]
+                    return block, frame.data, page.state["meshes"][0]["nodes"]
         await bus.close()
-        return block, None, page.state["mesh"]["nodes"]
+        return block, None, page.state["meshes"][0]["nodes"]
 
     try:
         block, on_bus, nodes = asyncio.run(go())
@@ -211,7 +211,7 @@ def test_rooms_are_isolated(network, walk):
         a = await NatsChannels.connect(nats_url, "a", A)
         b = await NatsChannels.connect(nats_url, "b", B)
         seen_a = a.subscribe("kinetre.skeleton.*")
-        seen_b = b.subscribe("kinetre.skeleton.*", "kinetre.transforms", "kinetre.state")
+        seen_b = b.subscribe("kinetre.skeleton.*", "kinetre.transforms.*", "kinetre.state")
         await a.ready()
         await b.ready()
         async with StudioClient(url, A) as c:  # a page of room a, through the gateway
@@ -289,7 +289,7 @@ def test_nats_restart_and_scene_loss(network, walk):
             return recorded_seen
 
     recorded_seen = asyncio.run(go())
-    logs = list(tmp.glob("kinetre-recording-*/take.log.jsonl"))
+    logs = list(tmp.glob("kinetre-recording-*/take-mesh*.log.jsonl"))
     assert len(logs) == 1
     on_disk = {frame[0] for frame in read_take_log(logs[0])}
     assert len(recorded_seen) >= 5 and recorded_seen <= on_disk  # every frame a viewer saw was recorded
@@ -353,7 +353,7 @@ def test_a_remote_scene_of_two_meshes_is_mirrored_per_mesh(network, walk, tmp_pa
                      headers=auth).json()["job"]
     added = wait_job(url, job, auth)["mesh"]
     state = httpx.get(f"{url}/api/state", headers=auth).json()
-    one = state["mesh"]["id"]
+    one = state["meshes"][0]["id"]
     assert [m["id"] for m in state["meshes"]] == [one, added]
     assert httpx.get(f"{url}/api/mesh/{added}", headers=auth).json()["name"] == "horse.obj"  # fetched over NATS
 

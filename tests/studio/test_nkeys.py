@@ -76,7 +76,7 @@ def test_a_rooms_nkey_stays_in_its_room(rooms):
 
     async def go():
         b = await NatsChannels.connect(url, "b", ROOMS["b"])
-        seen_b = b.subscribe("kinetre.skeleton.*", "kinetre.transforms")
+        seen_b = b.subscribe("kinetre.skeleton.*", "kinetre.transforms.*")
         await b.ready()
         spy = await NatsChannels.connect(url, "a", nkey=rooms["seed_a"])
         spy.prefix = "kinetre.b."  # room a's key, room b's subjects
@@ -113,7 +113,7 @@ def test_scene_process_joins_its_room_with_the_nkey(rooms, tmp_path):
             await bus.close()
             return frame
         frame = asyncio.run(state())
-        assert frame is not None and json.loads(frame.data)["mesh"]["nodes"] == 32
+        assert frame is not None and json.loads(frame.data)["meshes"][0]["nodes"] == 32
     finally:
         proc.terminate()
         proc.wait(10)

@@ -53,7 +53,7 @@ def test_two_people_in_one_camera_possess_the_two_halves(horse_studio, walk):
             await page.wait(lambda c: all(any(u["client"] == n and u["frames"] >= 3 for u in c.state["users"])
                                           for n in names))
             await page.send({"type": "fit", "person": 1})  # the horse stands on the first, 2 m from the second
-            await page.wait(lambda c: c.state["placement"]["position"][0] < -0.5)
+            await page.wait(lambda c: c.state["meshes"][0]["placement"]["position"][0] < -0.5)
             for p in (1, 2):
                 await page.send({"type": "possess", "person": p})
             await page.wait(lambda c: all(u["possessing"] for u in c.state["users"] if u["client"] in names)
@@ -80,9 +80,9 @@ def test_the_up_override_turns_the_mesh_and_back(studio):
         while not (status := httpx.get(studio + f"/api/jobs/{job}").json())["done"]:
             assert time.monotonic() < deadline, status
             time.sleep(0.2)
-        return httpx.get(studio + "/api/state").json()["mesh"]
+        return httpx.get(studio + "/api/state").json()["meshes"][0]
 
-    before = httpx.get(studio + "/api/state").json()["mesh"]
+    before = httpx.get(studio + "/api/state").json()["meshes"][0]
     assert before["up"] == "y" and before["name"] == "spot.obj"
     turned = turn("z")
     assert turned["up"] == "z" and turned["id"] == before["id"] + 1

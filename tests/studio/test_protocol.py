@@ -21,14 +21,14 @@ def test_a_new_client_gets_welcome_state_and_the_rest_pose(studio):
 
     client, state, (seq, mesh_id, t_source, t_out, m) = run(go())
     assert client.startswith("c")
-    assert state["mesh"]["name"] == "spot.obj" and mesh_id == state["mesh"]["id"]
-    assert m.shape == (state["mesh"]["nodes"], 4, 4) and 100 <= m.shape[0] <= 150
+    assert state["meshes"][0]["name"] == "spot.obj" and mesh_id == state["meshes"][0]["id"]
+    assert m.shape == (state["meshes"][0]["nodes"], 4, 4) and 100 <= m.shape[0] <= 150
     np.testing.assert_allclose(m, np.broadcast_to(np.eye(4), m.shape), atol=1e-6)
 
 
 def test_mesh_payload_holds_the_skinning_data(studio):
     state = httpx.get(studio + "/api/state").json()
-    payload = httpx.get(studio + state["mesh"]["url"]).json()
+    payload = httpx.get(studio + state["meshes"][0]["url"]).json()
     n, v = payload["nodeCount"], payload["vertexCount"]
     positions = np.frombuffer(base64.b64decode(payload["positions"]), "<f4").reshape(v, 3)
     index = np.frombuffer(base64.b64decode(payload["skinIndex"]), "<u2").reshape(v, 4)

@@ -43,7 +43,7 @@ def test_a_recorded_take_downloads_as_glb_bvh_and_stream(studio, walk):
     assert take["fps"] == 30 and take["frames"] >= 10
     assert all(r.status_code == 200 for r in files.values())
     glb = pygltflib.GLTF2.load_from_bytes(files["glb"].content)
-    nodes = httpx.get(studio + "/api/state").json()["mesh"]["nodes"]
+    nodes = httpx.get(studio + "/api/state").json()["meshes"][0]["nodes"]
     assert len(glb.skins) == 1 and len(glb.skins[0].joints) == nodes
     times = glb.accessors[glb.animations[0].samplers[0].input]
     assert times.count == take["frames"]

@@ -34,7 +34,7 @@ def follow(url, job, timeout=180):
     ("notes.txt", b"hello", "unsupported mesh format"),
 ])
 def test_a_bad_file_gets_a_readable_error_and_the_mesh_stays(fresh_studio, name, content, expected):
-    before = httpx.get(fresh_studio + "/api/state").json()["mesh"]["id"]
+    before = httpx.get(fresh_studio + "/api/state").json()["meshes"][0]["id"]
     r = httpx.post(f"{fresh_studio}/api/mesh?name={name}", content=content)
     assert r.status_code == 202
     status, _ = follow(fresh_studio, r.json()["job"])
@@ -44,7 +44,7 @@ def test_a_bad_file_gets_a_readable_error_and_the_mesh_stays(fresh_studio, name,
     if expected is not None:
         assert expected in message
     assert "/tmp" not in message  # the server's temporary folder is not the user's business
-    assert httpx.get(fresh_studio + "/api/state").json()["mesh"]["id"] == before
+    assert httpx.get(fresh_studio + "/api/state").json()["meshes"][0]["id"] == before
 
 
 def test_empty_upload_is_refused(fresh_studio):
@@ -57,18 +57,18 @@ def test_a_good_mesh_replaces_the_scene_for_every_client(fresh_studio, data_dir)
 
     async def go():
         async with StudioClient(fresh_studio) as c:
-            before = c.state["mesh"]["id"]
+            before = c.state["meshes"][0]["id"]
             r = httpx.post(f"{fresh_studio}/api/mesh?name=teapot.obj", content=data, timeout=60)
             status, stages = await asyncio.to_thread(follow, fresh_studio, r.json()["job"])
-            await c.wait(lambda c: c.state["mesh"]["id"] != before and c.transforms[1] == c.state["mesh"]["id"], 60)
+            await c.wait(lambda c: c.state["meshes"][0]["id"] != before and c.transforms[1] == c.state["meshes"][0]["id"], 60)
             return before, status, stages, c.state, c.transforms
 
     before, status, stages, state, transforms = asyncio.run(go())
-    assert status["error"] == "" and status["mesh"] == state["mesh"]["id"] == before + 1
-    assert state["mesh"]["name"] == "teapot.obj" and 50 <= state["mesh"]["nodes"] <= 80
+    assert status["error"] == "" and status["mesh"] == state["meshes"][0]["id"] == before + 1
+    assert state["meshes"][0]["name"] == "teapot.obj" and 50 <= state["meshes"][0]["nodes"] <= 80
     fractions = [f for _, f in stages]
     assert fractions == sorted(fractions) and fractions[-1] == 1.0
-    assert transforms[4].shape[0] == state["mesh"]["nodes"]
+    assert transforms[4].shape[0] == state["meshes"][0]["nodes"]
 
 
 def test_scan_entry_turns_a_zip_of_rgbd_frames_into_the_mesh(fresh_studio, data_dir, tmp_path):
@@ -85,7 +85,7 @@ def test_scan_entry_turns_a_zip_of_rgbd_frames_into_the_mesh(fresh_studio, data_
     assert not status["error"] and status["mesh"] is not None, status
     assert any(s.startswith("scanning") for s, _ in stages)
     state = httpx.get(fresh_studio + "/api/state").json()
-    assert state["mesh"]["id"] == status["mesh"] and state["mesh"]["name"] == "livingroom.ply"
+    assert state["meshes"][0]["id"] == status["mesh"] and state["meshes"][0]["name"] == "livingroom.ply"
 
 
 def test_scan_entry_refuses_a_bad_zip_readably(fresh_studio):

@@ -38,7 +38,7 @@ class Frame:
     Attributes
     ----------
     subject : str
-        e.g. "kinetre.skeleton.c3" or "kinetre.transforms".
+        e.g. "kinetre.skeleton.c3" or "kinetre.transforms.1".
     seq : int
         The publisher's sequence number (increasing per subject).
     t : float

@@ -55,11 +55,11 @@ class SceneHost(Protocol):
         """The mesh payload (JSON bytes) if `mesh_id` is one of the scene's meshes."""
 
     def start_job(self, name: str, data: bytes, scan_options: dict | None = None, add: bool = False) -> Job:
-        """Prepare an uploaded mesh: it replaces the default mesh, or with `add` joins the scene beside the
+        """Prepare an uploaded mesh: it replaces the first mesh, or with `add` joins the scene beside the
         others (the job's `mesh_id` once done)."""
 
     def set_up(self, up: str, mesh_id: int | None = None) -> Job:
-        """Stand mesh `mesh_id` (None: the default) with its stored axis `up` (one of
+        """Stand mesh `mesh_id` (None: the first) with its stored axis `up` (one of
         `kinetre.mesh.upright.AXES`) as +Y (the page's override of the up axis found on load): a job like an
         upload; KinetreError where that cannot be done (MeshError for an unknown mesh)."""
 
@@ -205,7 +205,7 @@ class LocalScene:
         self.sources[job.mesh_id] = (raw, name)
 
     def start_job(self, name: str, data: bytes, scan_options: dict | None = None, add: bool = False) -> Job:
-        """Prepare an uploaded mesh in a worker thread; when ready it replaces the default mesh, or with `add`
+        """Prepare an uploaded mesh in a worker thread; when ready it replaces the first mesh, or with `add`
         joins the scene beside the others."""
         job = self.jobs.new(name)
         replace = None if add else self.mesh_id

@@ -5,7 +5,7 @@
 
     studio subject                 NATS subject
     kinetre.skeleton.<user>   ↔    kinetre.<room>.skeleton.<user>     a capture client's frames
-    kinetre.transforms        ↔    kinetre.<room>.transforms          the scene's node matrices
+    kinetre.transforms.<id>   ↔    kinetre.<room>.transforms.<id>     each mesh's node matrices
     kinetre.state             ↔    kinetre.<room>.state               the scene's state (also its heartbeat)
     kinetre.client.<user>     ↔    kinetre.<room>.client.<user>       replies to one client
     kinetre.command.<user>    ↔    kinetre.<room>.command.<user>      a client's commands to a remote scene
@@ -219,7 +219,7 @@ class NatsChannels:
 
     # --- subjects ---------------------------------------------------------------------------------------
     def wire(self, subject: str) -> str:
-        """"kinetre.transforms" → "kinetre.<room>.transforms"."""
+        """"kinetre.transforms.1" → "kinetre.<room>.transforms.1"."""
         if not subject.startswith(NAMESPACE):
             raise NetworkError(f"subject {subject!r} is outside the studio's namespace")
         return self.prefix + subject[len(NAMESPACE):]

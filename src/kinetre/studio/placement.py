@@ -62,7 +62,7 @@ class Placement:
 
 
 def beside(boxes: list[tuple[np.ndarray, np.ndarray]], mesh: Mesh, like: Placement, gap: float = 0.3) -> Placement:
-    """Where a mesh added to a scene stands: with the scale and yaw of `like` (the default mesh's placement),
+    """Where a mesh added to a scene stands: with the scale and yaw of `like` (the first mesh's placement),
     on its floor and at its depth, `gap` metres to the +x side of every world-space (min, max) box in
     `boxes` (the meshes already there), so that no two meshes overlap."""
     right = max((float(hi[0]) for _, hi in boxes), default=float(like.position[0]))

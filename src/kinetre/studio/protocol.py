@@ -20,7 +20,7 @@ Client → server (WebSocket text, JSON objects with a "type"):
     "blendshapes": [52 numbers in 0..1] in FaceLandmarker's order (`BLENDSHAPES`: "_neutral", then the 51
         ARKit names), or null
     "mesh": int on possess, fit and place: which of the scene's meshes (its id in the state's "meshes");
-        without it, the default (first) mesh, or for fit the mesh the user possesses
+        without it, the first mesh, or for fit the mesh the user possesses
 
 Server → client: JSON {"type": "welcome" | "state" | "skeleton" | "stats" | "error" | "progress", …}
 and binary node-transform blocks (kinetre/wire/transforms.py).
@@ -193,7 +193,7 @@ def parse_person(msg: dict) -> int | None:
 
 
 def parse_mesh(msg: dict) -> int | None:
-    """The "mesh" of a message (a mesh id of the scene), or None for the default mesh."""
+    """The "mesh" of a message (a mesh id of the scene), or None for the first mesh."""
     mesh = msg.get("mesh")
     if mesh is None:
         return None

@@ -4,7 +4,7 @@ A take is written as GLB (the mesh animated), node transforms (the page replays 
 and, when a user drove it, BVH and the skeleton stream of its first user, with that user's hands and face
 blendshapes as `kinetre capture` records a person's (so `kinetre avatar` drives fingers and expressions from
 it). Each take gets a folder of its own under the studio's take directory, served as /api/takes/<id>/<file>.
-In a scene of several meshes each mesh that moved is written: the default mesh's files as `take.*` (kinds
+In a scene of several meshes each mesh that moved is written: the first mesh's files as `take.*` (kinds
 "glb", "transforms", "bvh", "stream"), mesh N's as `take-mesh<N>.*` (kinds "glb-N", …).
 """
 from __future__ import annotations

@@ -26,13 +26,12 @@ from .host import LocalScene, answer_error, apply
 from .jobs import MAX_UPLOAD, Job, Jobs
 from .meshes import NODES, data_path, prepare_mesh
 from .natsbus import NatsChannels, probe_nats
-from .placement import Placement
 from .player import sample_player
 from .protocol import ProtocolError, parse_message
 from .recording import Takes
 from .scene import MeshError, Scene
 from .scene.solve_worker import SolveWorker, freeze_heap
-from .subjects import (COMMANDS, FILES, JOBS, MESH_TRANSFORMS, MESHES, STATE, TAKES, TRANSFORMS, UPLOAD,
+from .subjects import (COMMANDS, FILES, JOBS, MESHES, STATE, TAKES, TRANSFORMS, UPLOAD,
                        command_subject, is_transforms, last_token, skeleton_subject)
 
 log = logging.getLogger("kinetre.network")
@@ -82,21 +81,18 @@ class SceneMirror:
         self.lost = True  # until the scene is first heard
 
     @property
-    def mesh_id(self) -> int:
-        return self.latest["mesh"]["id"] if self.latest else 0
+    def mesh_ids(self) -> list[int]:
+        """The scene's meshes, in its order."""
+        return [] if self.latest is None else [m["id"] for m in self.latest.get("meshes", ())]
 
     @property
-    def mesh_ids(self) -> list[int]:
-        """The scene's meshes, the default first (a scene that names no list has one mesh)."""
-        if self.latest is None:
-            return []
-        meshes = self.latest.get("meshes") or ([self.latest["mesh"]] if self.latest.get("mesh") else [])
-        return [m["id"] for m in meshes]
+    def mesh_id(self) -> int:
+        return (self.mesh_ids or [0])[0]
 
     def state(self) -> dict:
         if self.latest is None:
-            return {"type": "state", "mesh": None, "placement": Placement().as_dict(), "users": [],
-                    "recording": False, "solve_ms": None, "error": "", "scene_lost": True}
+            return {"type": "state", "meshes": [], "users": [], "recording": False, "solve_ms": None, "error": "",
+                    "scene_lost": True}
         c = self.hub.counters
         return {**self.latest, "scene_lost": self.lost,
                 "bus": {"gaps": c.gaps, "late": c.late, "offline": c.offline, "reconnects": c.reconnects}}
@@ -106,7 +102,7 @@ class SceneMirror:
 
     async def run(self) -> None:
         """Follow the scene's state and transforms; announce "scene lost" to this gateway's pages."""
-        sub = self.hub.subscribe(STATE, TRANSFORMS, MESH_TRANSFORMS)
+        sub = self.hub.subscribe(STATE, TRANSFORMS)
         watchdog = asyncio.get_running_loop().create_task(self._watch())
         try:
             while True:

@@ -2,11 +2,11 @@
 
     GET  /api/state            the scene state (JSON)
     GET  /api/mesh/{id}        one of the scene's meshes with its skinning data (JSON, base64 arrays)
-    POST /api/mesh/up?up=AXIS  stand the default mesh (&mesh=ID: that one) with that stored axis (y, z, x, -x,
+    POST /api/mesh/up?up=AXIS  stand the first mesh (&mesh=ID: that one) with that stored axis (y, z, x, -x,
                                -y, -z) up (the page's override of the up axis found on load, mesh/upright.py):
                                a job like an upload
     POST /api/mesh?name=F      upload a mesh file (OBJ/PLY/STL/GLB…): a job that loads it and builds the graph;
-                               it replaces the default mesh, or with &add=1 joins the scene beside the others;
+                               it replaces the first mesh, or with &add=1 joins the scene beside the others;
                                a .zip of RGB-D frames (TUM or Redwood layout) is scanned into a mesh first
                                (&segment=plane|none, &voxel=metres)
     DELETE /api/mesh/{id}      remove a mesh (its possessors let go); the scene keeps at least one
@@ -68,7 +68,7 @@ def api_routes(host: SceneHost, hub: Channels, connected: Callable[[str], bool])
     async def mesh_post(request: Request) -> Response:
         add = request.query_params.get("add", "0")
         if add not in ("0", "1"):
-            return JSONResponse({"error": f"add must be 0 (replace the default mesh) or 1 (add one), got {add!r}"},
+            return JSONResponse({"error": f"add must be 0 (replace the first mesh) or 1 (add one), got {add!r}"},
                                 400)
         name, data, too_big = await read_upload(request, "mesh", MAX_UPLOAD)
         if too_big is not None:

@@ -5,9 +5,8 @@ The data path, in subjects:
     capture client ──SKELETONS──▶ scene ──TRANSFORMS, STATE──▶ viewers
                     (skeleton_subject(c), one per user)        (client_subject(c): replies to one client)
 
-A scene of several meshes publishes the default (first) mesh's transform blocks on TRANSFORMS and each
-other mesh's on `transforms_subject(id)` (MESH_TRANSFORMS matches them all): latest-wins is per subject, so
-a slow viewer still gets every mesh's newest block.
+Every mesh's transform blocks go on a subject of its own, `transforms_subject(id)` (TRANSFORMS matches them
+all): latest-wins is per subject, so a slow viewer still gets every mesh's newest block.
 
 With the scene in its own process (remote.py), a gateway forwards each page's commands on
 `command_subject(c)` and asks the scene for files, uploads, upload jobs, takes and mesh removals on FILES,
@@ -19,8 +18,8 @@ from __future__ import annotations
 NAMESPACE = "kinetre."
 SKELETON_PREFIX = NAMESPACE + "skeleton."
 SKELETONS = SKELETON_PREFIX + "*"
-TRANSFORMS = NAMESPACE + "transforms"
-MESH_TRANSFORMS = TRANSFORMS + ".*"
+TRANSFORMS_PREFIX = NAMESPACE + "transforms."
+TRANSFORMS = TRANSFORMS_PREFIX + "*"
 STATE = NAMESPACE + "state"
 CLIENT_PREFIX = NAMESPACE + "client."
 COMMAND_PREFIX = NAMESPACE + "command."
@@ -43,13 +42,13 @@ def skeleton_subject(client: str) -> str:
 
 
 def transforms_subject(mesh_id: int) -> str:
-    """The subject of the transform blocks of a mesh other than the default one."""
-    return f"{TRANSFORMS}.{int(mesh_id)}"
+    """The subject of mesh `mesh_id`'s transform blocks."""
+    return f"{TRANSFORMS_PREFIX}{int(mesh_id)}"
 
 
 def is_transforms(subject: str) -> bool:
-    """Whether `subject` carries transform blocks (TRANSFORMS or a `transforms_subject`)."""
-    return subject == TRANSFORMS or subject.startswith(TRANSFORMS + ".")
+    """Whether `subject` carries transform blocks (a `transforms_subject`)."""
+    return subject.startswith(TRANSFORMS_PREFIX)
 
 
 def client_subject(client: str) -> str:

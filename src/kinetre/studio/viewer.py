@@ -18,8 +18,7 @@ from .channels import Channels, Frame
 from .fanout import Framing, raw_socket
 from .host import SceneHost, answer_error, apply, reply
 from .protocol import ProtocolError, parse_frame, parse_message, parse_person, person_client, with_client
-from .subjects import (MESH_TRANSFORMS, SKELETON_PREFIX, SKELETONS, STATE, TRANSFORMS, client_subject, is_transforms,
-                       skeleton_subject)
+from .subjects import SKELETON_PREFIX, SKELETONS, STATE, TRANSFORMS, client_subject, is_transforms, skeleton_subject
 
 
 @dataclass
@@ -43,7 +42,7 @@ class Viewer:
     def __init__(self, ws: WebSocket, client: str, hub: Channels, host: SceneHost, framing: Framing):
         self.ws, self.client, self.hub, self.host, self.framing = ws, client, hub, host, framing
         self.stats = ClientStats()
-        self.sub = hub.subscribe(urgent=(TRANSFORMS, MESH_TRANSFORMS, STATE, client_subject(client)))
+        self.sub = hub.subscribe(urgent=(TRANSFORMS, STATE, client_subject(client)))
 
     async def run(self) -> None:
         """Greet the page, then serve it until it disconnects."""

@@ -20,9 +20,9 @@ export function statusLine(f: StatusFacts): string {
   const parts = [f.connected ? `connected as ${f.client}` : offline];
   if (f.sceneLost) parts.push('scene lost');
   if (f.state) {
-    const meshes = f.state.meshes ?? [];
-    parts.push(meshes.length > 1 ? meshes.map((m) => m.name).join(' + ')
-      : `${f.state.mesh.name} (${f.state.mesh.nodes} nodes)`);
+    const meshes = f.state.meshes;
+    parts.push(meshes.length === 1 ? `${meshes[0].name} (${meshes[0].nodes} nodes)`
+      : meshes.map((m) => m.name).join(' + '));
     const drivers = f.state.users.filter((u) => u.possessing)
       .map((u) => (u.client === f.client ? 'you' : u.client) + (u.hand ? ` (${u.hand} hand)` : ''));
     parts.push(drivers.length ? `driven by ${drivers.join(' + ')}` : 'nobody possesses the mesh');

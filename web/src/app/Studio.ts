@@ -1,8 +1,9 @@
 // The page's wiring along the data path: this page's capture (CaptureLoop) → its skeleton channel on the
 // socket → the server's node transforms → each of the scene's meshes skinned on the GPU with its own, with
 // the other users' skeletons, the rigging view, an avatar, a face, physics (Playground), voice, and takes
-// (TakeSession). The default mesh carries the gizmo, the rigging preview and physics; each other mesh
-// stands where the server places it, and each person in view possesses the mesh chosen in the people list.
+// (TakeSession). Every mesh is a MeshView of one map, skinned by its own transform blocks; the first mesh
+// listed carries the gizmo, the rigging preview and physics, every mesh stands where the server places it,
+// and each person in view possesses the mesh chosen in the people list.
 import * as THREE from 'three';
 import { Camera } from '../capture/Camera';
 import { FaceController, installFaceTestHook } from '../face/FaceController';
@@ -35,10 +36,10 @@ const OTHER_COLOURS = [0x7fdbff, 0xb10dc9, 0x2ecc40, 0xffdc00];
 const MY_COLOUR = 0xffffff;
 const STALE_MS = 2000; // a remote skeleton not updated for this long disappears
 
-/** A mesh of the scene other than the default one, skinned by its own transform blocks. */
+/** One of the scene's meshes, skinned by its own transform blocks. */
 export interface MeshView {
   graph: SkinnedGraphMesh;
-  holder: THREE.Group; // carries the mesh's placement matrix
+  holder: THREE.Group; // carries the mesh's placement matrix (the first mesh hangs in the gizmo's instead)
 }
 
 function placeHolder(holder: THREE.Group, p: PlacementState): void {
@@ -64,8 +65,7 @@ export class Studio {
   readonly avatars: AvatarStage;
   readonly physics: Playground;
   readonly face: FaceController;
-  graphMesh: SkinnedGraphMesh | null = null; // the default mesh
-  /** The scene's other meshes, by id. */
+  /** The scene's meshes, by id. */
   readonly views = new Map<number, MeshView>();
   readonly people: PeopleList;
   preview: AttachPreview | null = null;
@@ -78,8 +78,8 @@ export class Studio {
   lastVoice: VoiceResult | null = null;
   transformsSeen = 0;
   latency: number[] = [];
-  private loadingMesh = 0;
   private readonly loadingViews = new Set<number>();
+  private riggedFor: number | null = null; // the mesh the preview and physics were set up for
   private readonly pending = new Map<number, TransformBlock>(); // by mesh id: blocks for a mesh still loading
   private previewClock = 0;
 
@@ -115,7 +115,7 @@ export class Studio {
       say,
       downloads: (links) => this.panel.setDownloads(links),
       companion: this.avatars,
-      recorded: (url, fps) => { if (this.state) this.physics.setTake(url, fps, this.state.placement.matrix); },
+      recorded: (url, fps) => { const first = this.firstState(); if (first) this.physics.setTake(url, fps, first.placement.matrix); },
     });
     this.uploader = new MeshUploader({
       onProgress: (label, f) => this.panel.setProgress(label, f),
@@ -158,7 +158,7 @@ export class Studio {
         this.placement.holder.updateMatrixWorld(true);
         return this.placement.holder.matrixWorld.elements;
       },
-      liveMesh: () => this.graphMesh,
+      liveMesh: () => this.firstMesh,
       say,
       progress: (label, fraction) => this.panel.setProgress(label, fraction),
     });
@@ -185,15 +185,15 @@ export class Studio {
             ? 'you possess the mesh: move! (R or say “release” to let go)'
             : 'released: the mesh is back at rest');
         }
-        this.placement.apply(m.placement);
-        if (!this.graphMesh || this.graphMesh.data.id !== m.mesh.id) void this.loadMesh(m.mesh.id, m.mesh.url);
-        this.showMeshes(m.meshes ?? []);
-        this.meshList.show(m.meshes ?? []);
+        const first = this.firstState();
+        if (first) this.placement.apply(first.placement);
+        this.showMeshes(m.meshes);
+        this.meshList.show(m.meshes);
         this.panel.setActive('sample', this.sampleUser(), undefined);
         this.panel.setActive('possess', this.possessing);
         this.panel.setActive('record', m.recording);
         this.jointMap.show(m.joint_map);
-        this.upAxis.show(m.mesh.up, m.mesh.up_reason);
+        if (first) this.upAxis.show(first.up, first.up_reason);
         this.updateStatus();
         break;
       }
@@ -208,58 +208,67 @@ export class Studio {
     }
   }
 
+  /** The first mesh the scene lists (the one the gizmo, the rigging preview and physics work on). */
+  private firstState(): MeshState | null {
+    return this.state?.meshes[0] ?? null;
+  }
+
+  /** The first mesh as shown, once loaded. */
+  get firstMesh(): SkinnedGraphMesh | null {
+    const first = this.firstState();
+    return first ? this.views.get(first.id)?.graph ?? null : null;
+  }
+
   private onTransforms(block: TransformBlock): void {
     this.transformsSeen++;
     const view = this.views.get(block.meshId);
-    if (view) {
-      view.graph.setNodeMatrices(block.rows, block.seq);
-      return;
-    }
-    if (!this.graphMesh || block.meshId !== this.graphMesh.data.id) {
+    if (!view) {
       this.pending.set(block.meshId, block); // the mesh is still loading: apply when it arrives
       return;
     }
-    this.physics.setTransforms(block.rows);
-    if (this.physics.replaying) return; // the replay draws the take's poses
-    this.graphMesh.setNodeMatrices(block.rows, block.seq);
-    if (block.tSource > 0) this.latency = [...this.latency.slice(-59), Date.now() - block.tSource];
+    if (block.meshId === this.riggedFor) {
+      this.physics.setTransforms(block.rows);
+      if (block.tSource > 0) this.latency = [...this.latency.slice(-59), Date.now() - block.tSource];
+      if (this.physics.replaying) return; // the replay draws the take's poses
+    }
+    view.graph.setNodeMatrices(block.rows, block.seq);
   }
 
-  private async loadMesh(id: number, url: string): Promise<void> {
-    if (this.loadingMesh === id) return;
-    this.loadingMesh = id;
-    const data = await fetchMesh(url.replace(/^\//, ''));
-    if (this.state && this.state.mesh.id !== id) return; // replaced while downloading
-    this.graphMesh?.mesh.removeFromParent();
-    this.graphMesh?.dispose();
-    this.preview?.dispose();
-    this.graphMesh = new SkinnedGraphMesh(data);
-    this.preview = new AttachPreview(data.nodes);
-    this.placement.holder.add(this.graphMesh.mesh, this.preview.points);
-    const pending = this.pending.get(id);
-    if (pending) this.graphMesh.setNodeMatrices(pending.rows, pending.seq);
-    this.physics.setMesh(data);
-    if (pending) this.physics.setTransforms(pending.rows);
-    this.pending.delete(id);
-    if (this.state) this.showMeshes(this.state.meshes ?? []); // a mesh shown beside may be the default now
-    this.updateStatus();
-  }
-
-  /** Show the scene's meshes other than the default one where they stand; drop the ones gone. */
+  /** Show the scene's meshes where they stand, loading new ones and dropping the ones gone; the first one
+   * hangs in the gizmo's holder, with the rigging preview and physics. */
   private showMeshes(meshes: MeshState[]): void {
-    const others = meshes.filter((m) => m.id !== this.graphMesh?.data.id && m.id !== this.state?.mesh.id);
     for (const [id, view] of this.views) {
-      if (others.some((m) => m.id === id)) continue;
+      if (meshes.some((m) => m.id === id)) continue;
+      view.graph.mesh.removeFromParent();
       view.holder.removeFromParent();
       view.graph.dispose();
       this.views.delete(id);
     }
-    for (const m of others) {
+    meshes.forEach((m, i) => {
       const view = this.views.get(m.id);
-      if (view) placeHolder(view.holder, m.placement);
-      else void this.loadView(m);
-    }
+      if (!view) {
+        void this.loadView(m);
+        return;
+      }
+      placeHolder(view.holder, m.placement);
+      const parent = i === 0 ? this.placement.holder : view.holder;
+      if (view.graph.mesh.parent !== parent) parent.add(view.graph.mesh);
+    });
+    this.rigFirst();
     this.people.show(this.capture.people.ids, this.capture.people.main, this.meshChoices());
+  }
+
+  /** The rigging preview and physics follow the first mesh. */
+  private rigFirst(): void {
+    const first = this.firstMesh;
+    if (!first || first.data.id === this.riggedFor) return;
+    this.riggedFor = first.data.id;
+    this.preview?.points.removeFromParent();
+    this.preview?.dispose();
+    this.preview = new AttachPreview(first.data.nodes);
+    this.placement.holder.add(this.preview.points);
+    this.physics.setMesh(first.data);
+    this.updateStatus();
   }
 
   private async loadView(m: MeshState): Promise<void> {
@@ -267,16 +276,15 @@ export class Studio {
     this.loadingViews.add(m.id);
     try {
       const data = await fetchMesh(m.url.replace(/^\//, ''));
-      const now = this.state?.meshes?.find((x) => x.id === m.id);
-      if (!now || now.id === this.state?.mesh.id) return; // removed, or the default now, while downloading
+      if (!this.state?.meshes.some((x) => x.id === m.id)) return; // removed while downloading
       const view = { graph: new SkinnedGraphMesh(data), holder: new THREE.Group() };
-      view.holder.add(view.graph.mesh);
-      placeHolder(view.holder, now.placement);
       this.viewport.scene.add(view.holder);
       this.views.set(m.id, view);
       const pending = this.pending.get(m.id);
       if (pending) view.graph.setNodeMatrices(pending.rows, pending.seq);
       this.pending.delete(m.id);
+      this.showMeshes(this.state.meshes);
+      if (pending && m.id === this.riggedFor) this.physics.setTransforms(pending.rows);
     } finally {
       this.loadingViews.delete(m.id);
     }
@@ -295,7 +303,7 @@ export class Studio {
   }
 
   /** "Fit to me": each chosen mesh stands where the first person (the page's own user first) who chose it
-   * stands; with every person on the default mesh, that is the page's own user alone, as before. */
+   * stands; with every person on the first mesh, that is the page's own user alone, as before. */
   private fitMessages(): object[] {
     const people = this.capture.people;
     const choices = this.meshChoices();
@@ -380,7 +388,6 @@ export class Studio {
     }
     const figures = [this.me, ...this.others.values()].filter((f) => f.group.visible);
     const segments = figures.flatMap((f) => f.segments());
-    this.graphMesh?.setSkeletonSegments(segments);
     for (const view of this.views.values()) view.graph.setSkeletonSegments(segments);
     if (this.preview && now - this.previewClock > 100) {
       this.previewClock = now;
@@ -426,7 +433,7 @@ export class Studio {
         : 'the scene is back', this.sceneLost);
       this.updateStatus();
     }
-    return !m.mesh;
+    return m.meshes.length === 0;
   }
 
   private updateStatus(): void {

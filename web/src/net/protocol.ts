@@ -52,15 +52,13 @@ export interface MeshState extends MeshInfo {
 
 export interface SceneState {
   type: 'state';
-  mesh: MeshInfo; // the default mesh (the first of `meshes`)
-  placement: PlacementState; // the default mesh's
-  meshes?: MeshState[]; // every mesh, the default first (a server of one mesh may leave it out)
+  meshes: MeshState[]; // every mesh of the scene, in its order (none while a remote scene is not heard yet)
   users: UserState[];
   recording: boolean;
   joint_map?: { name: string; sources: number } | null;
   solve_ms: number | null;
   error: string;
-  scene_lost?: boolean; // set by a studio whose remote scene stopped answering (mesh is null if never heard)
+  scene_lost?: boolean; // set by a studio whose remote scene stopped answering (no meshes if never heard)
 }
 
 export type ServerMessage =

@@ -1,6 +1,6 @@
 // Load a mesh by drag and drop or the file picker: upload (progress from the browser), then poll the
 // server's preprocessing job (progress from the server) until the new mesh is ready or fails readably. A
-// mesh replaces the scene's default mesh, or (the "Add mesh" picker) joins the scene beside the others.
+// mesh replaces the scene's first mesh, or (the "Add mesh" picker) joins the scene beside the others.
 
 export const MESH_EXTENSIONS = ['.obj', '.ply', '.stl', '.glb', '.gltf', '.off'];
 // Rigged avatars (also offered to `intercept` first, which may take any skinned glTF).

@@ -21,7 +21,7 @@ export function installTestHook(studio: Studio): void {
   (window as unknown as { kinetre: object }).kinetre = {
     studio,
     state() {
-      const mesh = studio.graphMesh;
+      const mesh = studio.firstMesh;
       const vertexCount = mesh ? mesh.data.positions.length / 3 : 0;
       const median = (a: number[]) => (a.length ? [...a].sort((x, y) => x - y)[Math.floor(a.length / 2)] : null);
       return {
@@ -41,17 +41,17 @@ export function installTestHook(studio: Studio): void {
         puppet: studio.puppet.hand,
         attachableJoints: studio.preview?.attachableJoints.filter(Boolean).length ?? 0,
         users: studio.state?.users ?? [],
-        meshUp: studio.state?.mesh.up ?? null,
+        meshUp: studio.state?.meshes[0]?.up ?? null,
         meshBox: mesh ? meshBox(mesh) : null,
-        // every mesh of the scene, the default first: who possesses it, its box and sampled vertices as shown
+        // every mesh of the scene, in its order: who possesses it, its box and sampled vertices as shown
         meshes: (studio.state?.meshes ?? []).map((m) => {
-          const shown = m.id === mesh?.data.id ? mesh : studio.views.get(m.id)?.graph ?? null;
+          const shown = studio.views.get(m.id)?.graph ?? null;
           const count = shown ? shown.data.positions.length / 3 : 0;
           return { id: m.id, name: m.name, possessors: m.possessors, loaded: shown !== null,
             meshBox: shown ? meshBox(shown) : null, transformsSeq: shown?.seq ?? 0,
             vertices: shown ? shown.skinnedPositions(sampleIndices(64, count)) : [] };
         }),
-        placement: studio.state?.placement ?? null,
+        placement: studio.state?.meshes[0]?.placement ?? null,
         recording: studio.state?.recording ?? false,
         vertices: mesh ? mesh.skinnedPositions(sampleIndices(64, vertexCount)) : [],
         skeleton: studio.me.positions,

@@ -45,7 +45,7 @@ export class Panel {
       <div id="status">connecting…</div>
       <section class="area" id="area-scene"><h2>Scene</h2>
         <div class="row">
-          <label class="file" title="replaces the default mesh">Load mesh… <input type="file" id="file"></label>
+          <label class="file" title="replaces the first mesh">Load mesh… <input type="file" id="file"></label>
           <label class="file" title="a mesh of its own for another person, beside the others">Add mesh… <input type="file" id="file-add"></label>
           <button id="sample" title="M">Sample motion</button>
         </div>

@@ -7,7 +7,7 @@ export interface MeshChoice {
 
 export class PeopleList {
   readonly root: HTMLElement;
-  /** Person id → the mesh id chosen for them (absent: the scene's default mesh). */
+  /** Person id → the mesh id chosen for them (absent: the scene's first mesh). */
   readonly choice = new Map<number, number>();
   private shown = '';
 
@@ -18,7 +18,7 @@ export class PeopleList {
     area.appendChild(this.root);
   }
 
-  /** The mesh chosen for `person`, if that mesh is still in the scene (else null: the default mesh). */
+  /** The mesh chosen for `person`, if that mesh is still in the scene (else null: the first mesh). */
   meshOf(person: number | null, meshes: MeshChoice[]): number | null {
     const chosen = person === null ? undefined : this.choice.get(person);
     return chosen !== undefined && meshes.some((m) => m.id === chosen) ? chosen : null;

@@ -76,7 +76,7 @@ class Scene:
         self.meshes = Meshes()
         self.users = Users(clean, as_sent=(SAMPLE_CLIENT,))  # the sample player's mocap is clean already
         self.recording = Recording()
-        self.publisher = Publisher(hub, self.meshes, self.recording)
+        self.publisher = Publisher(hub, self.recording)
         self.possession = Possession(self.users, self.meshes, self.publisher)
         self.solves = SolveLoops(self.users, self.meshes, self.publisher, self.possession.rebuild)
         self.joint_map = None  # a JointMap: the n-th user to possess a mesh drives with the joints sources[n] keeps
@@ -107,9 +107,8 @@ class Scene:
         self.recording.drop(old.id)
         self.possession.release_all(old)
         new = SceneMesh(self.meshes.next_id(), mesh, graph, name, old.solver, upright, old.placement)
-        first = old is self.meshes.first
         self.meshes.replace(old, new)
-        self.recording.add(new.id, new.id if first else None)  # the take goes on with the new mesh
+        self.recording.add(new.id)  # the take goes on with the new mesh
         self.solves.retire(old)
         self.solves.start(new)
         self.publisher.publish(new, now_ms())
@@ -139,7 +138,6 @@ class Scene:
         self.possession.release_all(m)
         del self.meshes[mesh_id]
         self.solves.retire(m)
-        self.publisher.publish(self.meshes.first, now_ms())  # the first may have changed: its blocks on TRANSFORMS
         self.publish_state()
 
     def place(self, scale: float, position, yaw: float, mesh_id: int | None = None) -> None:
@@ -284,7 +282,7 @@ class Scene:
     def start_recording(self, folder: str | Path | None = None) -> Path:
         """Record every mesh's solved frames to a take log each in `folder` (a temporary folder by default),
         flushed per frame; returns the folder."""
-        folder = self.recording.start(list(self.meshes), folder, self.meshes.first.id)
+        folder = self.recording.start(list(self.meshes), folder)
         self.publish_state()
         return folder
 

@@ -17,7 +17,7 @@ import numpy as np
 from ...deform.pose import GraphPose
 from ...wire.transforms import pack_transforms
 from ..channels import Channels, Frame, now_ms
-from ..subjects import TRANSFORMS, transforms_subject
+from ..subjects import transforms_subject
 from .meshes import Meshes, SceneMesh
 from .solve_worker import SolverLost
 from .takes import Recording
@@ -34,11 +34,11 @@ class Publisher:
     """Where every mesh's pose goes out: a solved pose is held (`hold`) and goes out, recorded first, with
     `flush`; a pose set otherwise (at rest, a mesh added) goes out at once with `publish`."""
 
-    def __init__(self, hub: Channels, meshes: Meshes, recording: Recording):
-        self.hub, self.meshes, self.recording = hub, meshes, recording
+    def __init__(self, hub: Channels, recording: Recording):
+        self.hub, self.recording = hub, recording
 
     def subject(self, m: SceneMesh) -> str:
-        return TRANSFORMS if m is self.meshes.first else transforms_subject(m.id)
+        return transforms_subject(m.id)
 
     def block(self, m: SceneMesh) -> bytes:
         """Mesh `m`'s current pose as a transform block (sent to a viewer when it connects)."""

@@ -23,11 +23,8 @@ def scene_state(meshes: Meshes, users: Users, recording: bool, joint_map, error:
     attached = {c: j for mesh in listed for c, j in mesh.pop("attached").items()}
     solve_cpu = [ms for m in meshes.values() for ms in m.solve_cpu_ms]
     solve_ms = [ms for m in meshes.values() for ms in m.solve_ms]
-    first = {k: v for k, v in listed[0].items() if k not in ("placement", "possessors", "solve_ms")}
     return {
         "type": "state",
-        "mesh": first,  # the first mesh, as a scene of one mesh reported it
-        "placement": listed[0]["placement"],
         "meshes": listed,
         "users": [{"client": u.client, "possessing": u.bind is not None, "mesh": u.mesh, "subset": u.subset,
                    "hand": u.hand, "frames": u.frames, "attached": attached.get(u.client, []),

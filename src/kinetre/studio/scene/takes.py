@@ -127,21 +127,20 @@ class Recording:
     def on(self) -> bool:
         return self.folder is not None
 
-    def start(self, mesh_ids: list[int], folder: str | Path | None = None, first: int | None = None) -> Path:
+    def start(self, mesh_ids: list[int], folder: str | Path | None = None) -> Path:
         """Record into `folder` (a temporary folder by default) a take log for each of `mesh_ids`."""
         self.close()
         self.folder = Path(tempfile.mkdtemp(prefix="kinetre-recording-")) if folder is None else Path(folder)
         for mesh_id in mesh_ids:
-            self.add(mesh_id, first)
+            self.add(mesh_id)
         return self.folder
 
-    def add(self, mesh_id: int, first: int | None = None) -> TakeLog | None:
-        """A take log for mesh `mesh_id` while recording (None otherwise). The log of mesh `first` is
-        take.log.jsonl (what is left on disk if the scene is killed); the others' take-mesh<id>.log.jsonl."""
+    def add(self, mesh_id: int) -> TakeLog | None:
+        """A take log for mesh `mesh_id` while recording (None otherwise): take-mesh<id>.log.jsonl, what is
+        left on disk if the scene is killed."""
         if self.folder is None:
             return None
-        name = "take.log.jsonl" if mesh_id == first else f"take-mesh{mesh_id}.log.jsonl"
-        self.logs[mesh_id] = TakeLog(self.folder / name)
+        self.logs[mesh_id] = TakeLog(self.folder / f"take-mesh{mesh_id}.log.jsonl")
         return self.logs[mesh_id]
 
     def drop(self, mesh_id: int) -> None:
