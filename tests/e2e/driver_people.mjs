@@ -43,7 +43,7 @@ async function screenshot(page, file) {
 
 /** The mesh's lower legs (its lowest 25 %, mesh frame, away from the body that joins them), front (the head's side: its highest vertex) and back. */
 const legVertices = (page) => page.evaluate(() => {
-  const p = window.kinetre.studio.graphMesh.data.positions;
+  const p = window.kinetre.studio.firstMesh.data.positions;
   const n = p.length / 3;
   let low = Infinity, high = -Infinity, top = 0;
   for (let i = 0; i < n; i++) {
@@ -64,7 +64,7 @@ const legVertices = (page) => page.evaluate(() => {
 async function motion(page, groups, count = 10) {
   const samples = [];
   for (let i = 0; i < count; i++) {
-    samples.push(await page.evaluate((g) => g.map((ids) => window.kinetre.studio.graphMesh.skinnedPositions(ids)), groups));
+    samples.push(await page.evaluate((g) => g.map((ids) => window.kinetre.studio.firstMesh.skinnedPositions(ids)), groups));
     await page.waitForTimeout(300);
   }
   return groups.map((ids, g) => {
