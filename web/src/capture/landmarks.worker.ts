@@ -63,7 +63,7 @@ let framesSearched = 0;
 // every frame halved the detection rate under SwiftShader
 const DISCOVER_EVERY = 4;
 // whole-frame searches before the first square's: the first person is tracked without waiting for squares
-const SQUARES_FROM_FRAME = 8;
+const SQUARES_FROM_FRAME = 2;
 // the page searches squares from a 16:9 frame on, where the letterbox shrinks a person to 56 %; a 4:3
 // webcam's letterbox keeps 75 %, and its two squares, each most of the frame, mostly find the same person
 // again at a third of the detection rate
