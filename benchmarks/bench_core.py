@@ -396,5 +396,9 @@ if __name__ == "__main__":
             bench_build_graph(meshes=tuple(name[12:].split(",")), node_counts=(256,) if quick else (128, 256))
         elif name == "skin":
             bench_skin(quick=quick)
+        elif name == "solve":
+            bench_solve()
+            # the 1,024-node scale case: the default design alone (an exact reference per frame would take minutes)
+            bench_solve(cases=((1024, 2),), designs=("pcg_adaptive",), reference=False)
         else:
             globals()[f"bench_{name}"]()
