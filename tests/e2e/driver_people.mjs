@@ -59,13 +59,19 @@ const legVertices = (page) => page.evaluate(() => {
     back: sampled.filter((i) => Math.sign(p[3 * i + 2] - middle) !== ahead) };
 });
 
-/** How much each group of vertices moves over `count` samples: the mean over its vertices of their RMS
- * distance (metres) from their mean position. */
+/** How much each group of vertices moves over `count` solved poses at least 300 ms apart (a loaded machine
+ * solves fewer a second: the window stretches rather than seeing the same pose again): the mean over its
+ * vertices of their RMS distance (metres) from their mean position. */
 async function motion(page, groups, count = 10) {
   const samples = [];
+  const id = await page.evaluate(() => window.kinetre.state().meshId);
   for (let i = 0; i < count; i++) {
+    if (i) {
+      const shown = await page.evaluate((m) => window.shown[m]?.count ?? 0, id);
+      await page.waitForTimeout(300); // at least this far apart, then a pose solved since
+      await until(page, ([m, n]) => (window.shown[m]?.count ?? 0) > n, [id, shown], 60000);
+    }
     samples.push(await page.evaluate((g) => g.map((ids) => window.kinetre.studio.firstMesh.skinnedPositions(ids)), groups));
-    await page.waitForTimeout(300);
   }
   return groups.map((ids, g) => {
     let total = 0;
