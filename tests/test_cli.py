@@ -182,7 +182,7 @@ def test_bad_inputs_give_one_line_and_exit_2(capsys, tmp_path, data_dir, spot):
     assert "wrong_channels.bvh: line 131: expected 60 channel values" in bad(
         capsys, "record", wrong, "-o", tmp_path / "w.kinetre.jsonl")
     assert "missing.obj" in bad(capsys, "info", tmp_path / "missing.obj")
-    assert "unsupported output type" in bad(capsys, "animate", spot, "--motion", corrupt, "-o", tmp_path / "x.fbx")
+    assert "unsupported output type" in bad(capsys, "animate", spot, "--motion", corrupt, "-o", tmp_path / "x.abc")
     blank = tmp_path / "blank.mp4"
     import cv2
     w = cv2.VideoWriter(str(blank), cv2.VideoWriter_fourcc(*"mp4v"), 10, (96, 96))

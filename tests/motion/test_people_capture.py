@@ -148,5 +148,11 @@ def test_the_command_records_both_people_and_refuses_bad_input_in_one_line(tmp_p
     junk.write_text("not a video")
     assert "junk.mp4: cannot open" in refused("capture", "--video", junk, "-o", out)
     assert "people must be 1 to 4" in refused("capture", "--video", clip, "--people", 0, "-o", out)
+    # without the models the command fetches them on first use (saying so); with no index to reach, one error line
     monkeypatch.setattr(models, "search_dirs", lambda: (tmp_path,))
-    assert "pose_landmarker_full.task: not found" in refused("capture", "--video", clip, "-o", out)
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "cache"))
+    monkeypatch.setenv("PIP_INDEX_URL", "http://127.0.0.1:9/simple/")
+    assert main(["capture", "--video", str(clip), "-o", str(out)]) == 2
+    notice, error = capsys.readouterr().err.strip().splitlines()
+    assert notice.startswith("kinetre: first use: fetching the MediaPipe models")
+    assert error.startswith("kinetre: error: cannot reach") and "pose_landmarker_full.task" in error
