@@ -129,3 +129,20 @@ def test_bad_inputs_each_get_their_error(tmp_path):
     (no_camera / "broken.json").unlink()
     with pytest.raises(BadScanError, match="unknown camera 'hololens'"):
         open_sequence(no_camera, camera="hololens")
+
+
+def test_a_tum_list_may_not_name_files_outside_its_folder_but_may_use_linked_folders(tmp_path):
+    """An uploaded list naming ../ or an absolute path is refused; a folder linked in by the user is read."""
+    outside = tmp_path / "elsewhere"
+    outside.mkdir()
+    Image.new("I;16", (4, 4)).save(outside / "0.png")
+    root = tmp_path / "frames"
+    root.mkdir()
+    (root / "depth").symlink_to(outside)
+    (root / "depth.txt").write_text("0.0 depth/0.png\n")
+    (root / "rgb.txt").write_text("0.0 depth/0.png\n")
+    open_sequence(root, Intrinsics(4, 4, 2.0, 2.0, 2.0, 2.0))  # linked folder: fine
+    for name in ("../elsewhere/0.png", str(outside / "0.png")):
+        (root / "depth.txt").write_text(f"0.0 {name}\n")
+        with pytest.raises(BadScanError, match="lies outside the frames folder"):
+            open_sequence(root, Intrinsics(4, 4, 2.0, 2.0, 2.0, 2.0))
