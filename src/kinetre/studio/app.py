@@ -40,10 +40,10 @@ from ..mesh.load import load_mesh
 from ..motion.models import MODELS, model_path
 from .access import TokenGate, check_bind
 from .avatars import Shelf, avatar_routes
-from .channels import Hub
+from .channels import Channels, Hub
 from .face_routes import face_routes
 from .fanout import Framing, RawSockets
-from .host import LocalScene, SceneHost
+from .host import LocalScene, SceneHost, apply
 from .meshes import NODES, data_path, prepare_upright
 from .natsbus import NatsChannels, probe_nats
 from .player import sample_player
@@ -105,7 +105,7 @@ def create_app(mesh_path: str | None = None, nodes: int = NODES, sample_motion: 
     prefix = f"{secrets.token_hex(2)}-" if nats else ""  # client names unique across studios of a room
     framing = Framing()  # each transform block framed once for all pages
     vmc_out = VmcOut(hub, shelf, *vmc) if vmc is not None else None
-    vmc_users = VmcUsers(hub, possess_command(host), *vmc_listen) if vmc_listen is not None else None
+    vmc_users = VmcUsers(hub, possess_command(host, hub), *vmc_listen) if vmc_listen is not None else None
     bridges: list[asyncio.Task] = []
 
     @contextlib.asynccontextmanager
@@ -155,10 +155,11 @@ def create_app(mesh_path: str | None = None, nodes: int = NODES, sample_motion: 
     return app
 
 
-def possess_command(host: SceneHost):
-    """command(client, msg) for VMC performers: a page's command, as JSON through the scene host."""
-    async def command(client: str, msg: dict) -> None:
-        await host.command(client, msg, json.dumps(msg).encode())
+def possess_command(host: SceneHost, hub: Channels):
+    """command(client, msg) for VMC performers: a page's command, as JSON through the one dispatch
+    (`host.apply`); the failure, or None."""
+    async def command(client: str, msg: dict) -> Exception | None:
+        return await apply(host, hub, client, msg, json.dumps(msg).encode())
     return command
 
 

@@ -14,7 +14,6 @@ import logging
 
 import numpy as np
 
-from ..errors import KinetreError
 from ..skeleton.models import Skeleton
 from ..vmc.receive import VmcListener
 from .channels import Channels, Frame, now_ms
@@ -27,7 +26,8 @@ RETRY_S = 0.5  # a possession refused (no frame in the scene yet) is tried again
 
 class VmcUsers:
     """A VMC listener whose performers publish skeleton frames and possess through `command(client, msg)`
-    (the scene host's command entry: {"type": "fit"} then {"type": "possess"})."""
+    (the studio's one command dispatch, which returns the failure or None: {"type": "fit"} then
+    {"type": "possess"})."""
 
     def __init__(self, hub: Channels, command, host: str = "127.0.0.1", port: int = 39539):
         self.hub, self.command = hub, command
@@ -66,12 +66,11 @@ class VmcUsers:
 
     async def _possess(self, client: str) -> None:
         await asyncio.sleep(0.05)  # the scene takes the first frame from the bus first
-        try:
-            await self.command(client, {"type": "fit"})
-            await self.command(client, {"type": "possess"})
-        except KinetreError as exc:
-            log.info("VMC performer %s cannot possess yet: %s", client, exc)
-            return
+        for msg in ({"type": "fit"}, {"type": "possess"}):
+            failed = await self.command(client, msg)
+            if failed is not None:  # answered and, if the server's fault, logged by the dispatch
+                log.info("VMC performer %s cannot possess yet: %s", client, failed)
+                return
         self.possessed.add(client)
         log.info("VMC performer %s possesses the mesh", client)
 
