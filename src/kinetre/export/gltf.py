@@ -35,6 +35,7 @@ from ..jit import njit
 from ..lazy import import_trimesh
 from ..mesh.mesh import Mesh, column_bounds
 from ..rotation import matrix_quaternions
+from ..svd3 import det3, svd3
 
 _ALIGN = 4  # glTF: every bufferView starts on a 4-byte boundary
 
@@ -87,7 +88,7 @@ def write_gltf(path, mesh: Mesh, graph: DeformationGraph, poses: list[GraphPose]
             doc.meshes[0].primitives[0].attributes.COLOR_0 = append_accessor(
                 doc, blob, _rgba(mesh.colors), gl.VEC4, gl.UNSIGNED_BYTE, normalized=True, minmax=True,
                 target=gl.ARRAY_BUFFER)
-    svd = np.linalg.svd(rotations)  # one factorisation serves the bound and either kind of joint
+    svd = svd3(rotations)  # one factorisation serves the bound and either kind of joint
     if stretch is None:
         stretch = polar_error_bound(mesh, graph, rotations, svd[1]) > tolerance * mesh.diagonal
     _add_skin_and_animation(doc, blob, graph, rotations, translations, fps, name, bool(stretch), svd)
@@ -167,7 +168,7 @@ def polar_rotations(matrices: np.ndarray, svd=None) -> np.ndarray:
     matrices : (..., 3, 3) float64
         Near-rotations R_j.
     svd : tuple, optional
-        `np.linalg.svd(matrices)` when the caller has it already.
+        `svd3(matrices)` when the caller has it already.
 
     Returns
     -------
@@ -179,8 +180,8 @@ def polar_rotations(matrices: np.ndarray, svd=None) -> np.ndarray:
     >>> bool(np.allclose(q, np.eye(3)))
     True
     """
-    u, _, vt = np.linalg.svd(matrices) if svd is None else svd
-    d = np.sign(np.linalg.det(u @ vt))
+    u, _, vt = svd3(matrices) if svd is None else svd
+    d = np.sign(det3(u) * det3(vt))
     d[d == 0] = 1.0
     u = u.copy()
     u[..., :, 2] *= d[..., None]
@@ -383,8 +384,8 @@ def polar_error_bound(mesh: Mesh, graph: DeformationGraph, rotations: np.ndarray
                    np.ascontiguousarray(graph.vertex_nodes), np.ascontiguousarray(graph.vertex_weights))
     # R − Q = U (diag(s) − diag(1, 1, d)) V^T with d = sign det R: its 2-norm is max_i |s_i − e_i|
     # (where det R = 0, s_3 = 0 and |s_3 − d| = 1 for either sign)
-    s = np.linalg.svd(rotations, compute_uv=False) if singular_values is None else singular_values  # (F, N, 3)
-    d = np.where(np.linalg.det(rotations) < 0, -1.0, 1.0)
+    s = svd3(rotations)[1] if singular_values is None else singular_values  # (F, N, 3)
+    d = np.where(det3(rotations) < 0, -1.0, 1.0)
     gap = np.maximum(np.abs(s[..., :2] - 1.0).max(axis=-1), np.abs(s[..., 2] - d))            # (F, N)
     return float((gap * reach[None]).max())
 
@@ -411,7 +412,7 @@ def stretch_factors(rotations: np.ndarray, svd=None) -> tuple[np.ndarray, np.nda
     ----------
     rotations : (F, N, 3, 3) float64
     svd : tuple, optional
-        `np.linalg.svd(rotations)` when the caller has it already (its arrays are modified).
+        `svd3(rotations)` when the caller has it already (its arrays are modified).
 
     Returns
     -------
@@ -424,9 +425,9 @@ def stretch_factors(rotations: np.ndarray, svd=None) -> tuple[np.ndarray, np.nda
     M^T W): of the 24 proper ones, each frame takes the M nearest to the previous frame's factors, so a
     player interpolating between keys does not swing through a relabelling of the axes.
     """
-    u, s, w = np.linalg.svd(rotations) if svd is None else svd
+    u, s, w = svd3(rotations) if svd is None else svd
     # make U and W proper; a reflection in R (det < 0) goes into the last scale
-    du, dw = np.sign(np.linalg.det(u)), np.sign(np.linalg.det(w))
+    du, dw = np.sign(det3(u)), np.sign(det3(w))
     du[du == 0], dw[dw == 0] = 1.0, 1.0
     u[..., :, 2] *= du[..., None]
     w[..., 2, :] *= dw[..., None]
