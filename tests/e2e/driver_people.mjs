@@ -43,7 +43,7 @@ async function screenshot(page, file) {
 
 /** The mesh's lower legs (its lowest 25 %, mesh frame, away from the body that joins them), front (the head's side: its highest vertex) and back. */
 const legVertices = (page) => page.evaluate(() => {
-  const p = window.kinetre.studio.firstMesh.data.positions;
+  const p = window.kinetre.studio.selectedMesh.data.positions;
   const n = p.length / 3;
   let low = Infinity, high = -Infinity, top = 0;
   for (let i = 0; i < n; i++) {
@@ -71,7 +71,7 @@ async function motion(page, groups, count = 10) {
       await page.waitForTimeout(300); // at least this far apart, then a pose solved since
       await until(page, ([m, n]) => (window.shown[m]?.count ?? 0) > n, [id, shown], 60000);
     }
-    samples.push(await page.evaluate((g) => g.map((ids) => window.kinetre.studio.firstMesh.skinnedPositions(ids)), groups));
+    samples.push(await page.evaluate((g) => g.map((ids) => window.kinetre.studio.selectedMesh.skinnedPositions(ids)), groups));
   }
   return groups.map((ids, g) => {
     let total = 0;

@@ -1,7 +1,8 @@
 // Physics play in a real browser (Debian's Chromium + SwiftShader, driven by playwright-core): the box tower
 // beside the sample cow at rest, the cow dragged through it (the "place" message the Move gizmo sends), boxes
 // falling, the sphere proxies shown (O), reset by key (X) and by voice ("reset" on the fake microphone),
-// dodgeball, and a recorded take replayed through the physics into a WebM. Prints one JSON object.
+// dodgeball, a recorded take replayed through the physics into a WebM, and a second mesh whose proxies join
+// the world. Prints one JSON object.
 //   node driver_physics.mjs '{"url": "...", "audio": "reset.wav", "artifacts": "...", "out": "video.webm"}'
 import { mkdirSync, writeFileSync } from 'node:fs';
 import { join, resolve } from 'node:path';
@@ -24,9 +25,9 @@ async function shot(page, file) {
 function dragRight(page) {
   return page.evaluate(async () => {
     const studio = window.kinetre.studio;
-    const p = studio.state.meshes[0].placement;
+    const { id, placement: p } = studio.selectedState;
     for (let i = 1; i <= 40; i++) {
-      studio.socket.send({ type: 'place', scale: p.scale, position: [p.position[0] + 0.045 * i, p.position[1], p.position[2]], yaw: p.yaw });
+      studio.socket.send({ type: 'place', mesh: id, scale: p.scale, position: [p.position[0] + 0.045 * i, p.position[1], p.position[2]], yaw: p.yaw });
       await new Promise((r) => setTimeout(r, 75));
     }
   });
@@ -54,7 +55,7 @@ async function run() {
     await page.keyboard.press('x'); // the tower beside the cow at rest
     await until(page, (n) => window.kinetre.state().physics.resets > n, built);
     const start = await physics(page);
-    result.start = { spheres: start.spheres, radius: start.radius, boxes: start.boxes };
+    result.start = { spheres: start.spheres, radii: start.radii, meshes: start.meshes, boxes: start.boxes };
     log('tower built', { spheres: start.spheres });
     await shot(page, 'physics-tower.png');
 
@@ -115,18 +116,30 @@ async function run() {
     // the take and the mesh as the page got them, for the same replay in node
     const take = await page.evaluate(async () => {
       const s = window.kinetre.state();
-      const bytes = new Uint8Array(await (await fetch(s.take.files.transforms.replace(/^\//, ''))).arrayBuffer());
+      const [recorded] = s.take.meshes; // the scene's one mesh, its files named by its id
+      const bytes = new Uint8Array(await (await fetch(recorded.files.transforms.replace(/^\//, ''))).arrayBuffer());
       let b = '';
       for (let i = 0; i < bytes.length; i += 0x8000) b += String.fromCharCode(...bytes.subarray(i, i + 0x8000));
-      const mesh = await (await fetch(`api/mesh/${s.meshId}`)).text();
-      return { transforms: btoa(b), mesh, fps: s.take.fps };
+      const mesh = await (await fetch(`api/mesh/${recorded.id}`)).text();
+      return { transforms: btoa(b), mesh, fps: s.take.fps, id: recorded.id, file: recorded.files.transforms };
     });
     writeFileSync(config.takeTransforms, Buffer.from(take.transforms, 'base64'));
     writeFileSync(config.takeMesh, take.mesh);
-    result.take = { fps: take.fps };
+    result.take = { fps: take.fps, id: take.id, file: take.file };
     result.video = { name: video.name, hidden: video.hidden, file: config.out };
     await shot(page, 'physics-replayed.png');
     log('replayed');
+
+    // a second mesh added beside the cow: its proxies join the world (every mesh pushes the boxes), and
+    // selecting it in the mesh list gives it the gizmo
+    await page.setInputFiles('#file-add', resolve(config.add));
+    const both = await until(page, () => { const p = window.kinetre.state().physics; return p.meshes.length === 2 ? p : null; },
+      null, 240000);
+    const ids = await page.evaluate(() => window.kinetre.state().meshes.map((m) => m.id));
+    await page.check(`#mesh-list input[data-mesh="${ids[1]}"]`);
+    const selected = await until(page, (id) => { const s = window.kinetre.state(); return s.meshId === id ? s.meshId : null; }, ids[1]);
+    result.added = { meshes: both.meshes, spheres: both.spheres, boxes: both.boxes.length, ids, selected };
+    log('mesh added');
   } finally {
     await browser.close();
   }

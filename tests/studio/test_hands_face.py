@@ -137,7 +137,7 @@ def test_a_studio_take_records_the_hands_and_face_sent_and_drives_an_avatar(vmc_
                 stats = await c.stats()
                 await asyncio.sleep(0.5)
                 take = (await http.post("/api/record/stop")).json()
-                stream = (await http.get(take["files"]["stream"])).text
+                stream = (await http.get(take["meshes"][0]["files"]["stream"])).text
             return stats, [m for m in c.messages if m["type"] == "error"], stream
         finally:
             await c.__aexit__(None, None, None)

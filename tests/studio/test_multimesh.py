@@ -197,8 +197,11 @@ def test_the_studio_adds_a_mesh_each_person_possesses_one_and_removing_it_lets_g
         error, moved_by, take, removed, users, names = asyncio.run(go())
         assert error == f"no mesh 9 in the scene (its meshes: {one}, {two})"
         assert min(moved_by.values()) > 0.01, moved_by  # each mesh's nodes moved with its own person
-        assert {m["id"] for m in take["meshes"]} == {one, two} and {"glb", f"glb-{two}"} <= set(take["files"])
-        assert httpx.get(studio + take["files"][f"glb-{two}"]).content[:4] == b"glTF"
+        assert {m["id"] for m in take["meshes"]} == {one, two} and {f"glb-{one}", f"glb-{two}"} <= set(take["files"])
+        for m in take["meshes"]:  # each mesh's files the same way, by its id
+            assert m["files"]["glb"] == take["files"][f"glb-{m['id']}"]
+            assert m["files"]["glb"].endswith(f"/take-mesh{m['id']}.glb")
+            assert httpx.get(studio + m["files"]["glb"]).content[:4] == b"glTF"
         assert removed.status_code == 200
         assert users[names[0]]["possessing"] and users[names[0]]["mesh"] == one
         assert not users[names[1]]["possessing"] and users[names[1]]["mesh"] is None

@@ -33,7 +33,8 @@ def test_a_recorded_take_downloads_as_glb_bvh_and_stream(studio, walk):
                     await asyncio.sleep(1 / 30)
                 await asyncio.sleep(0.5)
                 take = (await http.post("/api/record/stop")).json()
-                files = {k: (await http.get(v)) for k, v in take["files"].items()}
+                [mesh] = take["meshes"]  # the one mesh that moved, its files by kind
+                files = {k: (await http.get(v)) for k, v in mesh["files"].items()}
                 empty = await http.post("/api/record/stop")
             return take, files, empty
         finally:
@@ -42,6 +43,10 @@ def test_a_recorded_take_downloads_as_glb_bvh_and_stream(studio, walk):
     take, files, empty = asyncio.run(go())
     assert take["fps"] == 30 and take["frames"] >= 10
     assert all(r.status_code == 200 for r in files.values())
+    mesh_id = take["meshes"][0]["id"]  # its files are named by its id, as every mesh's are
+    assert {k: v.rsplit("/", 1)[1] for k, v in take["files"].items()} == {
+        f"{kind}-{mesh_id}": f"take-mesh{mesh_id}.{ext}"
+        for kind, ext in [("glb", "glb"), ("transforms", "transforms"), ("bvh", "bvh"), ("stream", "kinetre.jsonl")]}
     glb = pygltflib.GLTF2.load_from_bytes(files["glb"].content)
     nodes = httpx.get(studio + "/api/state").json()["meshes"][0]["nodes"]
     assert len(glb.skins) == 1 and len(glb.skins[0].joints) == nodes

@@ -4,8 +4,8 @@ A take is written as GLB (the mesh animated), node transforms (the page replays 
 and, when a user drove it, BVH and the skeleton stream of its first user, with that user's hands and face
 blendshapes as `kinetre capture` records a person's (so `kinetre avatar` drives fingers and expressions from
 it). Each take gets a folder of its own under the studio's take directory, served as /api/takes/<id>/<file>.
-In a scene of several meshes each mesh that moved is written: the first mesh's files as `take.*` (kinds
-"glb", "transforms", "bvh", "stream"), mesh N's as `take-mesh<N>.*` (kinds "glb-N", …).
+Every mesh that moved is written, each the same way: mesh N's files as `take-mesh<N>.*`, listed under its
+entry of "meshes" by kind ("glb", "transforms", "bvh", "stream") and all together in "files" as "glb-N", ….
 """
 from __future__ import annotations
 
@@ -49,8 +49,8 @@ class Takes:
 
 
 async def record_take(scene: Scene, takes: Takes, fps: float = TAKE_FPS) -> dict:
-    """Stop the scene's recording and export the take; {"take", "frames", "fps", "files": {kind: url},
-    "meshes": [{"id", "name", "frames"}]} (every mesh that moved)."""
+    """Stop the scene's recording and export the take; {"take", "frames", "fps", "files": {"kind-id": url},
+    "meshes": [{"id", "name", "frames", "files": {kind: url}}]} (every mesh that moved, in the scene's order)."""
     recorded = {i: resample(frames, fps) for i, frames in scene.stop_recordings().items()}
     recorded = {i: take for i, take in recorded.items() if take and i in scene.meshes}
     if not recorded:
@@ -59,11 +59,10 @@ async def record_take(scene: Scene, takes: Takes, fps: float = TAKE_FPS) -> dict
     files, meshes = {}, []
     for mesh_id, take in recorded.items():
         m = scene.meshes[mesh_id]
-        suffix = "" if mesh_id == scene.meshes.first.id else f"-{mesh_id}"
-        written = await asyncio.to_thread(export_take, folder, m.mesh, m.graph, take, fps,
-                                          "take" if not suffix else f"take-mesh{mesh_id}")
-        files.update({k + suffix: f"/api/takes/{take_id}/{v}" for k, v in written.items()})
-        meshes.append({"id": mesh_id, "name": m.name, "frames": len(take)})
+        written = await asyncio.to_thread(export_take, folder, m.mesh, m.graph, take, fps, f"take-mesh{mesh_id}")
+        urls = {kind: f"/api/takes/{take_id}/{name}" for kind, name in written.items()}
+        files.update({f"{kind}-{mesh_id}": url for kind, url in urls.items()})
+        meshes.append({"id": mesh_id, "name": m.name, "frames": len(take), "files": urls})
     return {"take": take_id, "frames": max(m["frames"] for m in meshes), "fps": fps, "files": files,
             "meshes": meshes}
 

@@ -1,9 +1,10 @@
 // The page's wiring along the data path: this page's capture (CaptureLoop) → its skeleton channel on the
 // socket → the server's node transforms → each of the scene's meshes skinned on the GPU with its own, with
 // the other users' skeletons, the rigging view, an avatar, a face, physics (Playground), voice, and takes
-// (TakeSession). Every mesh is a MeshView of one map, skinned by its own transform blocks; the first mesh
-// listed carries the gizmo, the rigging preview and physics, every mesh stands where the server places it,
-// and each person in view possesses the mesh chosen in the people list.
+// (TakeSession). Every mesh is a MeshView of one map, skinned by its own transform blocks and standing where
+// the server places it; every mesh pushes the physics' boxes and balls, the mesh selected in the mesh list
+// (at first the first listed) carries the gizmo, the up axis and the rigging preview, and each person in view
+// possesses the mesh chosen in the people list.
 import * as THREE from 'three';
 import { Camera } from '../capture/Camera';
 import { FaceController, installFaceTestHook } from '../face/FaceController';
@@ -13,7 +14,7 @@ import { faceScores, handsFaceFields } from '../net/handsFace';
 import type { MeshState, PlacementState, SceneState, ServerMessage, SkeletonMessage, TransformBlock, Vec3 } from '../net/protocol';
 import { StudioSocket } from '../net/StudioSocket';
 import { AvatarStage } from '../avatar/AvatarStage';
-import { Playground } from '../physics/Playground';
+import { Playground, type ShownMesh } from '../physics/Playground';
 import { AttachPreview } from '../rigging/AttachPreview';
 import { MeshList } from '../rigging/MeshList';
 import { MeshUploader } from '../rigging/MeshUploader';
@@ -39,7 +40,7 @@ const STALE_MS = 2000; // a remote skeleton not updated for this long disappears
 /** One of the scene's meshes, skinned by its own transform blocks. */
 export interface MeshView {
   graph: SkinnedGraphMesh;
-  holder: THREE.Group; // carries the mesh's placement matrix (the first mesh hangs in the gizmo's instead)
+  holder: THREE.Group; // carries the mesh's placement matrix (the selected mesh hangs in the gizmo's instead)
 }
 
 function placeHolder(holder: THREE.Group, p: PlacementState): void {
@@ -79,7 +80,9 @@ export class Studio {
   transformsSeen = 0;
   latency: number[] = [];
   private readonly loadingViews = new Set<number>();
-  private riggedFor: number | null = null; // the mesh the preview and physics were set up for
+  /** The mesh the user selected in the mesh list (null, or gone from the scene: the first listed). */
+  selected: number | null = null;
+  private previewFor: number | null = null; // the mesh the rigging preview was set up for
   private readonly pending = new Map<number, TransformBlock>(); // by mesh id: blocks for a mesh still loading
   private previewClock = 0;
 
@@ -107,15 +110,19 @@ export class Studio {
       send: (message) => this.socket.sendFrame(message),
     });
     this.avatars = new AvatarStage(this.viewport.scene, this.panel.area('avatar'), say);
+    // the gizmo moves the selected mesh
     this.placement = new PlacementControls(this.viewport.camera, this.viewport.renderer.domElement,
-      this.viewport.controls, this.viewport.scene, (m) => this.socket.send(m));
+      this.viewport.controls, this.viewport.scene, (m) => this.socket.send({ ...m, mesh: this.selectedState?.id }));
     this.people = new PeopleList(this.panel.area('body'));
     this.voice = new VoiceListener(() => this.voiceQuery(), (r) => this.onVoice(r));
     this.takes = new TakeSession(this.viewport.renderer.domElement, {
       say,
       downloads: (links) => this.panel.setDownloads(links),
       companion: this.avatars,
-      recorded: (url, fps) => { const first = this.firstState(); if (first) this.physics.setTake(url, fps, first.placement.matrix); },
+      recorded: (take) => this.physics.setTake(take.fps, take.meshes.flatMap((m) => {
+        const shown = this.state?.meshes.find((x) => x.id === m.id);  // where it stood while recorded
+        return shown && m.files.transforms ? [{ id: m.id, transforms: m.files.transforms, placement: shown.placement.matrix }] : [];
+      })),
     });
     this.uploader = new MeshUploader({
       onProgress: (label, f) => this.panel.setProgress(label, f),
@@ -137,7 +144,7 @@ export class Studio {
         if (this.possessing) this.possess();
       });
     this.upAxis = new UpAxisControl(this.panel.area('scene'), say);
-    this.meshList = new MeshList(this.panel.area('scene'), say);
+    this.meshList = new MeshList(this.panel.area('scene'), say, (id) => this.select(id));
 
     const url = `${location.protocol === 'https:' ? 'wss' : 'ws'}://${location.host}${location.pathname.replace(/[^/]*$/, '')}ws`;
     this.socket = new StudioSocket(url, {
@@ -154,11 +161,7 @@ export class Studio {
     this.physics = new Playground({
       viewport: this.viewport,
       area: this.panel.area('physics'),
-      meshMatrix: () => {
-        this.placement.holder.updateMatrixWorld(true);
-        return this.placement.holder.matrixWorld.elements;
-      },
-      liveMesh: () => this.firstMesh,
+      meshes: () => this.shownMeshes(),
       say,
       progress: (label, fraction) => this.panel.setProgress(label, fraction),
     });
@@ -185,15 +188,11 @@ export class Studio {
             ? 'you possess the mesh: move! (R or say “release” to let go)'
             : 'released: the mesh is back at rest');
         }
-        const first = this.firstState();
-        if (first) this.placement.apply(first.placement);
         this.showMeshes(m.meshes);
-        this.meshList.show(m.meshes);
         this.panel.setActive('sample', this.sampleUser(), undefined);
         this.panel.setActive('possess', this.possessing);
         this.panel.setActive('record', m.recording);
         this.jointMap.show(m.joint_map);
-        if (first) this.upAxis.show(first.up, first.up_reason);
         this.updateStatus();
         break;
       }
@@ -208,34 +207,52 @@ export class Studio {
     }
   }
 
-  /** The first mesh the scene lists (the one the gizmo, the rigging preview and physics work on). */
-  private firstState(): MeshState | null {
-    return this.state?.meshes[0] ?? null;
+  /** The selected mesh's state: the one the gizmo, the up axis and the rigging preview work on. */
+  get selectedState(): MeshState | null {
+    const meshes = this.state?.meshes ?? [];
+    return meshes.find((m) => m.id === this.selected) ?? meshes[0] ?? null;
   }
 
-  /** The first mesh as shown, once loaded. */
-  get firstMesh(): SkinnedGraphMesh | null {
-    const first = this.firstState();
-    return first ? this.views.get(first.id)?.graph ?? null : null;
+  /** The selected mesh as shown, once loaded. */
+  get selectedMesh(): SkinnedGraphMesh | null {
+    const selected = this.selectedState;
+    return selected ? this.views.get(selected.id)?.graph ?? null : null;
+  }
+
+  /** Select mesh `id` (from the mesh list): the gizmo, the up axis and the rigging preview move to it. */
+  select(id: number): void {
+    this.selected = id;
+    if (this.state) this.showMeshes(this.state.meshes);
+  }
+
+  /** Every mesh shown, in the scene's order, with the world matrix it is drawn with (for physics). */
+  private shownMeshes(): ShownMesh[] {
+    return (this.state?.meshes ?? []).flatMap((m) => {
+      const view = this.views.get(m.id);
+      if (!view) return [];
+      return [{ id: m.id, graph: view.graph, matrix: () => {
+        const holder = view.graph.mesh.parent ?? view.holder;
+        holder.updateMatrixWorld(true);
+        return holder.matrixWorld.elements;
+      } }];
+    });
   }
 
   private onTransforms(block: TransformBlock): void {
     this.transformsSeen++;
     const view = this.views.get(block.meshId);
+    if (block.tSource > 0) this.latency = [...this.latency.slice(-59), Date.now() - block.tSource];
     if (!view) {
       this.pending.set(block.meshId, block); // the mesh is still loading: apply when it arrives
       return;
     }
-    if (block.meshId === this.riggedFor) {
-      this.physics.setTransforms(block.rows);
-      if (block.tSource > 0) this.latency = [...this.latency.slice(-59), Date.now() - block.tSource];
-      if (this.physics.replaying) return; // the replay draws the take's poses
-    }
+    this.physics.setTransforms(block.meshId, block.rows);
+    if (this.physics.replays(block.meshId)) return; // the replay draws the take's poses
     view.graph.setNodeMatrices(block.rows, block.seq);
   }
 
-  /** Show the scene's meshes where they stand, loading new ones and dropping the ones gone; the first one
-   * hangs in the gizmo's holder, with the rigging preview and physics. */
+  /** Show the scene's meshes where they stand, loading new ones and dropping the ones gone; the selected
+   * one hangs in the gizmo's holder, with the rigging preview. */
   private showMeshes(meshes: MeshState[]): void {
     for (const [id, view] of this.views) {
       if (meshes.some((m) => m.id === id)) continue;
@@ -244,30 +261,35 @@ export class Studio {
       view.graph.dispose();
       this.views.delete(id);
     }
-    meshes.forEach((m, i) => {
+    const selected = this.selectedState;
+    if (selected) {
+      this.placement.apply(selected.placement);
+      this.upAxis.show(selected.id, selected.up, selected.up_reason);
+    }
+    for (const m of meshes) {
       const view = this.views.get(m.id);
       if (!view) {
         void this.loadView(m);
-        return;
+        continue;
       }
       placeHolder(view.holder, m.placement);
-      const parent = i === 0 ? this.placement.holder : view.holder;
+      const parent = m.id === selected?.id ? this.placement.holder : view.holder;
       if (view.graph.mesh.parent !== parent) parent.add(view.graph.mesh);
-    });
-    this.rigFirst();
+    }
+    this.meshList.show(meshes, selected?.id ?? null);
+    this.rigSelected();
     this.people.show(this.capture.people.ids, this.capture.people.main, this.meshChoices());
   }
 
-  /** The rigging preview and physics follow the first mesh. */
-  private rigFirst(): void {
-    const first = this.firstMesh;
-    if (!first || first.data.id === this.riggedFor) return;
-    this.riggedFor = first.data.id;
+  /** The rigging preview follows the selected mesh. */
+  private rigSelected(): void {
+    const mesh = this.selectedMesh;
+    if (!mesh || mesh.data.id === this.previewFor) return;
+    this.previewFor = mesh.data.id;
     this.preview?.points.removeFromParent();
     this.preview?.dispose();
-    this.preview = new AttachPreview(first.data.nodes);
+    this.preview = new AttachPreview(mesh.data.nodes);
     this.placement.holder.add(this.preview.points);
-    this.physics.setMesh(first.data);
     this.updateStatus();
   }
 
@@ -281,10 +303,12 @@ export class Studio {
       this.viewport.scene.add(view.holder);
       this.views.set(m.id, view);
       const pending = this.pending.get(m.id);
-      if (pending) view.graph.setNodeMatrices(pending.rows, pending.seq);
+      if (pending) {
+        view.graph.setNodeMatrices(pending.rows, pending.seq);
+        this.physics.setTransforms(m.id, pending.rows);
+      }
       this.pending.delete(m.id);
       this.showMeshes(this.state.meshes);
-      if (pending && m.id === this.riggedFor) this.physics.setTransforms(pending.rows);
     } finally {
       this.loadingViews.delete(m.id);
     }
@@ -303,7 +327,7 @@ export class Studio {
   }
 
   /** "Fit to me": each chosen mesh stands where the first person (the page's own user first) who chose it
-   * stands; with every person on the first mesh, that is the page's own user alone, as before. */
+   * stands; with every person on one mesh, that is the page's own user alone. */
   private fitMessages(): object[] {
     const people = this.capture.people;
     const choices = this.meshChoices();

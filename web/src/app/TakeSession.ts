@@ -16,8 +16,8 @@ export interface TakeHost {
   downloads(links: Download[]): void;
   /** A take recorded beside the server's (the avatar's), started and stopped with it. */
   readonly companion: { startRecording(): void; stopRecording(): Promise<Download[]> };
-  /** The recorded take's node transforms (URL) at its frame rate, for the physics replay. */
-  recorded(transforms: string, fps: number): void;
+  /** The recorded take (each mesh's node transforms go to the physics replay). */
+  recorded(take: TakeFiles): void;
 }
 
 export class TakeSession {
@@ -54,11 +54,13 @@ export class TakeSession {
         throw err;
       });
       const others = await companion;
-      if (take.files.transforms) host.recorded(take.files.transforms, take.fps);
-      const links: Download[] = Object.entries(take.files).filter(([kind]) => kind !== 'transforms').map(([kind, href]) => ({
-        label: kind === 'stream' ? 'skeleton stream' : kind.toUpperCase(), href,
-        file: href.split('/').pop() as string,
-      }));
+      host.recorded(take);
+      // each mesh's files alike, named after the mesh when the take has several
+      const links: Download[] = take.meshes.flatMap((m) => Object.entries(m.files)
+        .filter(([kind]) => kind !== 'transforms').map(([kind, href]) => ({
+          label: (kind === 'stream' ? 'skeleton stream' : kind.toUpperCase()) + (take.meshes.length > 1 ? ` (${m.name})` : ''),
+          href, file: href.split('/').pop() as string,
+        })));
       links.push(...others);
       if (webm) links.push({ label: 'WebM', href: URL.createObjectURL(webm), file: `kinetre-${take.take}.webm` });
       host.downloads(links);

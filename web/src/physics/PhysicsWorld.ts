@@ -1,4 +1,4 @@
-// The physics world of the studio (KinÊtre paper, "Physics-based Interactions"): the mesh's sphere proxies as
+// The physics world of the studio (KinÊtre paper, "Physics-based Interactions"): the meshes' sphere proxies as
 // kinematic position-based bodies (each step they are told where to be next, so Rapier gives them the
 // velocity that gets them there and they hit boxes and balls with it), dynamic boxes and balls, and the
 // ground. Fixed step 1/60 s and a seeded ball thrower: the same proxy positions give the same world, step for
@@ -16,10 +16,15 @@ export const MAX_BALLS = 24; // the oldest ball goes when a new one would exceed
 // placement must not fire boxes across the room.
 export const MAX_PROXY_SPEED = 25;
 
+/** A proxy radius in the world frame: one for every proxy, or one each (S; several meshes, each its own). */
+export type Radii = number | Float64Array;
+
+export const radiusOf = (radii: Radii, s: number): number => (typeof radii === 'number' ? radii : radii[s]);
+
 export interface WorldSetup {
   preset: PresetName;
   centres: Float32Array; // S × 3 proxy centres at the start, world frame
-  radius: number; // proxy radius, world frame
+  radius: Radii;
   seed?: number;
   boxes?: BoxSpec[]; // overrides the preset's boxes (the benchmark)
 }
@@ -32,23 +37,24 @@ export class PhysicsWorld {
   readonly bounds: Bounds;
   readonly preset: PresetName;
   steps = 0;
-  private radius: number;
+  private readonly radii: Float64Array; // per proxy, as its collider has it
   private readonly random: () => number;
   private readonly last: Float32Array;
 
   constructor(private readonly R: Rapier, setup: WorldSetup) {
     this.preset = setup.preset;
-    this.radius = setup.radius;
     this.random = seededRandom(setup.seed ?? 1);
     this.world = new R.World({ x: 0, y: -GRAVITY, z: 0 });
     this.world.timestep = STEP;
     this.world.createCollider(R.ColliderDesc.cuboid(50, 0.5, 50).setTranslation(0, -0.5, 0).setFriction(0.8));
     this.bounds = sphereBounds(setup.centres, setup.radius);
     this.last = Float32Array.from(setup.centres);
-    for (let i = 0; i < setup.centres.length; i += 3) {
+    this.radii = new Float64Array(setup.centres.length / 3);
+    for (let s = 0; s < this.radii.length; s++) {
+      this.radii[s] = radiusOf(setup.radius, s);
       const body = this.world.createRigidBody(R.RigidBodyDesc.kinematicPositionBased()
-        .setTranslation(setup.centres[i], setup.centres[i + 1], setup.centres[i + 2]));
-      this.world.createCollider(R.ColliderDesc.ball(setup.radius).setFriction(0.6), body);
+        .setTranslation(setup.centres[3 * s], setup.centres[3 * s + 1], setup.centres[3 * s + 2]));
+      this.world.createCollider(R.ColliderDesc.ball(this.radii[s]).setFriction(0.6), body);
       this.proxies.push(body);
     }
     const boxes = setup.boxes ?? (setup.preset === 'tower' ? towerLayout(this.bounds) : []);
@@ -59,8 +65,9 @@ export class PhysicsWorld {
     }
   }
 
-  /** Where the proxies must be after the next step (S × 3, world frame), and their radius there. */
-  moveProxies(centres: Float32Array, radius = this.radius): void {
+  /** Where the proxies must be after the next step (S × 3, world frame), and their radii there (unchanged
+   * when not given). */
+  moveProxies(centres: Float32Array, radius: Radii = this.radii): void {
     let fastest = 0;
     for (let i = 0; i < centres.length; i++) fastest = Math.max(fastest, Math.abs(centres[i] - this.last[i]));
     const teleport = fastest > MAX_PROXY_SPEED * STEP;
@@ -70,10 +77,12 @@ export class PhysicsWorld {
       else body.setNextKinematicTranslation(t);
     });
     this.last.set(centres.subarray(0, this.last.length));
-    if (Math.abs(radius - this.radius) > 1e-3 * this.radius) {
-      this.radius = radius;
-      this.proxies.forEach((body) => body.collider(0).setRadius(radius));
-    }
+    this.proxies.forEach((body, s) => {
+      const r = radiusOf(radius, s);
+      if (Math.abs(r - this.radii[s]) <= 1e-3 * this.radii[s]) return; // a placement scaled, not jitter
+      this.radii[s] = r;
+      body.collider(0).setRadius(r);
+    });
   }
 
   /** One fixed step; in dodgeball, a ball is thrown every THROW_EVERY steps. */

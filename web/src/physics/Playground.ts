@@ -1,9 +1,8 @@
-// Physics play in the studio (KinÊtre paper, "Physics-based Interactions"): the possessed mesh's sphere
-// proxies in a Rapier world with a scene preset (box tower, dodgeball, ground only), stepped at a fixed
-// 1/60 s behind the render loop; reset by button, key X or the voice command "reset"; the proxies shown on request
-// (key O); and the last recorded take replayed through the physics deterministically into a WebM at the
-// take's own frame rate.
-import type { MeshData } from '../scene/MeshPayload';
+// Physics play in the studio (KinÊtre paper, "Physics-based Interactions"): the sphere proxies of every mesh
+// in the scene in one Rapier world with a scene preset (box tower, dodgeball, ground only), stepped at a fixed
+// 1/60 s behind the render loop; reset by button, key X or the voice command "reset"; the proxies shown on
+// request (key O); and the last recorded take (every mesh that moved) replayed through the physics
+// deterministically into a WebM at the take's own frame rate.
 import type { SkinnedGraphMesh } from '../scene/SkinnedGraphMesh';
 import type { Viewport } from '../scene/Viewport';
 import { PhysicsView } from './PhysicsView';
@@ -19,36 +18,53 @@ const LABELS: Record<PresetName | 'off', string> = {
 };
 const MAX_STEPS_PER_FRAME = 4; // a slow frame drops simulated time rather than spiralling
 
+/** One mesh of a replayed take: its id, frames and the placement it was recorded in. */
+export interface ReplayedMesh { id: number; frames: number; placement: number[] }
+
 export interface ReplayReport {
   frames: number; steps: number; knockedDown: number; boxes: number; videoBytes: number;
-  preset: PresetName; placement: number[]; states: number[]; // what a node replay of the same take must match
+  preset: PresetName; meshes: ReplayedMesh[]; states: number[]; // what a node replay of the same take must match
 }
+
+/** One of the scene's meshes as shown. */
+export interface ShownMesh {
+  readonly id: number;
+  readonly graph: SkinnedGraphMesh;
+  /** Its world matrix (its placement as shown), column-major. */
+  matrix(): ArrayLike<number>;
+}
+
+/** A take's mesh for the replay: its node transforms (URL) and the placement it was recorded in. */
+export interface TakeMesh { id: number; transforms: string; placement: number[] }
 
 /** What the playground needs from the page around it. */
 export interface PlaygroundHost {
   readonly viewport: Viewport;
   /** The panel area its controls go in. */
   readonly area: HTMLElement;
-  /** The live mesh's world matrix (its placement), column-major. */
-  meshMatrix(): ArrayLike<number>;
-  /** The live mesh, which a replay poses; null before one is loaded. */
-  liveMesh(): SkinnedGraphMesh | null;
+  /** Every mesh shown, in the scene's order (all of them push boxes and balls). */
+  meshes(): ShownMesh[];
   say(text: string, error?: boolean): void;
   progress(label: string | null, fraction?: number): void;
 }
 
+/** A mesh in the world: its proxies follow its newest node matrices through its placement. */
+interface Body { mesh: ShownMesh; proxies: SphereProxies }
+
 export class Playground {
   preset: PresetName | 'off';
   world: PhysicsWorld | null = null;
-  proxies: SphereProxies | null = null;
   replaying = false;
   lastReplay: ReplayReport | null = null;
   resets = 0; // worlds built so far (tests wait on it)
   private R: Rapier | null = null;
-  private rows: Float32Array | null = null;
+  private bodies: Body[] = []; // the meshes in the world, in the scene's order
+  private readonly rows = new Map<number, Float32Array>(); // each mesh's newest node matrices, by id
+  private readonly replayed = new Set<number>(); // the meshes a running replay poses
   private centres = new Float32Array(0);
+  private radii = new Float64Array(0);
   private accumulator = 0;
-  private take: { url: string; fps: number; placement: number[] } | null = null;
+  private take: { fps: number; meshes: TakeMesh[] } | null = null;
   private readonly view: PhysicsView;
   private readonly select: HTMLSelectElement;
   private readonly buttons: Record<'reset' | 'spheres' | 'replay', HTMLButtonElement>;
@@ -62,9 +78,9 @@ export class Playground {
     row.className = 'row';
     row.id = 'physics';
     row.innerHTML = `
-      <select id="physics-preset" title="physics scene: the mesh's spheres push boxes and balls"></select>
+      <select id="physics-preset" title="physics scene: every mesh's spheres push boxes and balls"></select>
       <button id="physics-reset" title="X or say “reset”">Reset</button>
-      <button id="physics-spheres" title="O: show the mesh's sphere proxies">Spheres</button>
+      <button id="physics-spheres" title="O: show the meshes' sphere proxies">Spheres</button>
       <button id="physics-replay" title="replay the last take through the physics into a WebM" disabled>Replay take</button>
       <a id="physics-video" class="download" hidden>Physics WebM</a>`;
     host.area.appendChild(row);
@@ -95,25 +111,20 @@ export class Playground {
   }
 
   // --- from the studio ----------------------------------------------------------------------------
-  setMesh(data: MeshData): void {
-    this.proxies = new SphereProxies(data.sphereRadius, data.positions, data.skinIndex, data.skinWeight, data.spheres);
-    this.centres = new Float32Array(3 * this.proxies.count);
-    this.rows = null;
-    this.take = null;
-    this.buttons.replay.disabled = true;
-    this.showControls();
-    this.reset();
+  /** The newest node matrices of mesh `id`. */
+  setTransforms(id: number, rows: Float32Array): void {
+    this.rows.set(id, rows);
   }
 
-  /** The newest node matrices of the live mesh. */
-  setTransforms(rows: Float32Array): void {
-    this.rows = rows;
+  /** Whether a running replay poses mesh `id` (the page then leaves its live pose alone). */
+  replays(id: number): boolean {
+    return this.replayed.has(id);
   }
 
-  /** A take recorded on the server: its node matrices (take.transforms) and the placement it was shown in. */
-  setTake(url: string, fps: number, placement: number[]): void {
-    this.take = { url, fps, placement };
-    this.buttons.replay.disabled = false;
+  /** A take recorded on the server: its meshes' node matrices (take-mesh<id>.transforms) and placements. */
+  setTake(fps: number, meshes: TakeMesh[]): void {
+    this.take = meshes.length ? { fps, meshes } : null;
+    this.buttons.replay.disabled = !this.take;
     this.showControls();
   }
 
@@ -140,19 +151,50 @@ export class Playground {
     return this.R;
   }
 
-  /** A fresh world of the current preset around the mesh where it stands now. */
+  /** The meshes shown now as bodies, each mesh's proxies made once; true when they differ from the world's. */
+  private follow(): boolean {
+    const shown = this.host.meshes();
+    const same = shown.length === this.bodies.length
+      && shown.every((m, i) => m.id === this.bodies[i].mesh.id && m.graph === this.bodies[i].mesh.graph);
+    if (same) {
+      shown.forEach((m, i) => { this.bodies[i].mesh = m; });
+      return false;
+    }
+    const before = new Map(this.bodies.map((b) => [b.mesh.graph, b.proxies]));
+    this.bodies = shown.map((mesh) => {
+      const d = mesh.graph.data;
+      return { mesh, proxies: before.get(mesh.graph)
+        ?? new SphereProxies(d.sphereRadius, d.positions, d.skinIndex, d.skinWeight, d.spheres) };
+    });
+    for (const id of this.rows.keys()) if (!shown.some((m) => m.id === id)) this.rows.delete(id);
+    const count = this.bodies.reduce((n, b) => n + b.proxies.count, 0);
+    this.centres = new Float32Array(3 * count);
+    this.radii = new Float64Array(count);
+    return true;
+  }
+
+  /** Every body's proxies where its mesh stands now (world frame) into `centres` and `radii`. */
+  private place(): void {
+    let s = 0;
+    for (const { mesh, proxies } of this.bodies) {
+      const matrix = mesh.matrix();
+      proxies.centres(this.rows.get(mesh.id) ?? null, matrix, this.centres.subarray(3 * s));
+      this.radii.fill(proxies.worldRadius(matrix), s, s + proxies.count);
+      s += proxies.count;
+    }
+  }
+
+  /** A fresh world of the current preset around the meshes where they stand now. */
   reset(): void {
     if (this.replaying) return;
     if (!this.R && this.preset !== 'off') { void this.rapier(); return; }
+    this.follow();
     this.world?.free();
     this.world = null;
     this.accumulator = 0;
-    if (this.R && this.proxies && this.preset !== 'off') {
-      const placement = this.placement();
-      this.world = new PhysicsWorld(this.R, {
-        preset: this.preset, centres: this.proxies.centres(this.rows, placement, this.centres),
-        radius: this.proxies.worldRadius(placement),
-      });
+    if (this.R && this.bodies.length && this.preset !== 'off') {
+      this.place();
+      this.world = new PhysicsWorld(this.R, { preset: this.preset, centres: this.centres, radius: this.radii });
       this.resets++;
     }
     this.view.build(this.world);
@@ -165,18 +207,16 @@ export class Playground {
   }
 
   // --- live stepping ------------------------------------------------------------------------------
-  private placement(): ArrayLike<number> {
-    return this.host.meshMatrix();
-  }
-
   private frame(dt: number): void {
-    const { world, proxies } = this;
-    if (!world || !proxies || this.replaying) return;
+    if (this.replaying) return;
+    if (this.follow()) this.reset(); // a mesh came or went: a world around the meshes now shown
+    const { world } = this;
+    if (!world) return;
     this.accumulator += dt;
     let steps = 0;
     while (this.accumulator >= STEP && steps < MAX_STEPS_PER_FRAME) {
-      const placement = this.placement();
-      world.moveProxies(proxies.centres(this.rows, placement, this.centres), proxies.worldRadius(placement));
+      this.place();
+      world.moveProxies(this.centres, this.radii);
       world.step();
       this.accumulator -= STEP;
       steps++;
@@ -186,30 +226,45 @@ export class Playground {
   }
 
   // --- takes --------------------------------------------------------------------------------------
-  /** Replay the last take through a fresh world (fixed step and seed) and render it into a WebM. */
+  /** Replay the last take (every mesh of it still shown) through a fresh world (fixed step and seed) and
+   * render it into a WebM. */
   async replay(): Promise<ReplayReport | null> {
-    const { take, proxies } = this;
-    const mesh = this.host.liveMesh();
-    if (!take || !proxies || !mesh || this.replaying) return null;
+    const { take } = this;
+    if (!take || this.replaying) return null;
+    this.follow();
+    const parts = take.meshes.flatMap((m) => {
+      const body = this.bodies.find((b) => b.mesh.id === m.id);
+      return body ? [{ ...m, body }] : [];
+    });
+    if (!parts.length) {
+      this.host.say('replay: the meshes of the take are no longer in the scene', true);
+      return null;
+    }
     const R = await this.rapier();
     const host = this.host;
     this.replaying = true;
     this.buttons.replay.disabled = true;
+    for (const p of parts) this.replayed.add(p.id);
     let replay: TakeReplay | null = null;
     try {
-      const response = await fetch(take.url.replace(/^\//, ''));
-      if (!response.ok) throw new Error(`cannot fetch the take (HTTP ${response.status})`);
-      const frames = parseTakeTransforms(await response.arrayBuffer());
+      const tracks = await Promise.all(parts.map(async (p) => {
+        const response = await fetch(p.transforms.replace(/^\//, ''));
+        if (!response.ok) throw new Error(`cannot fetch the take of mesh ${p.id} (HTTP ${response.status})`);
+        return { proxies: p.body.proxies, frames: parseTakeTransforms(await response.arrayBuffer()),
+          placement: p.placement };
+      }));
       const preset = this.preset === 'off' ? 'tower' : this.preset;
-      replay = new TakeReplay(R, proxies, frames, take.fps, take.placement, preset);
+      replay = new TakeReplay(R, tracks, take.fps, preset);
       this.world?.free();
       this.world = replay.world;
       this.view.build(this.world);
       const video = TakeVideo.supported() ? new TakeVideo(host.viewport.renderer.domElement, take.fps) : null;
       const stepsPerFrame = Math.max(1, Math.round(1 / (STEP * take.fps)));
       for (let k = 0; ; k++) {
-        const f = frames[Math.min(k, frames.length - 1)];
-        mesh.setNodeMatrices(f.rows, f.seq);
+        tracks.forEach(({ frames }, i) => {
+          const f = frames[Math.min(k, frames.length - 1)];
+          parts[i].body.mesh.graph.setNodeMatrices(f.rows, f.seq);
+        });
         this.view.sync(replay.world);
         host.viewport.renderer.render(host.viewport.scene, host.viewport.camera);
         await video?.add();
@@ -225,11 +280,12 @@ export class Playground {
         this.link.hidden = false;
       }
       this.lastReplay = {
-        frames: frames.length, steps: replay.world.steps, knockedDown: replay.world.knockedDown(),
-        boxes: replay.world.boxes.length, videoBytes: blob?.size ?? 0,
-        preset, placement: take.placement, states: replay.world.boxStates(),
+        frames: replay.frames, steps: replay.world.steps, knockedDown: replay.world.knockedDown(),
+        boxes: replay.world.boxes.length, videoBytes: blob?.size ?? 0, preset,
+        meshes: parts.map((p, i) => ({ id: p.id, frames: tracks[i].frames.length, placement: p.placement })),
+        states: replay.world.boxStates(),
       };
-      host.say(`replayed ${frames.length} frames: ${this.lastReplay.knockedDown} of ${this.lastReplay.boxes} boxes down`
+      host.say(`replayed ${replay.frames} frames: ${this.lastReplay.knockedDown} of ${this.lastReplay.boxes} boxes down`
         + (blob ? '; the video is under “Physics WebM”' : '; this browser cannot encode video (no WebCodecs)'));
       return this.lastReplay;
     } catch (err) {
@@ -238,8 +294,12 @@ export class Playground {
     } finally {
       host.progress(null);
       this.replaying = false;
+      this.replayed.clear();
       this.buttons.replay.disabled = !this.take;
-      if (this.rows) mesh.setNodeMatrices(this.rows, mesh.seq); // back to the live pose
+      for (const { id, body } of parts) { // back to the live pose
+        const rows = this.rows.get(id);
+        if (rows) body.mesh.graph.setNodeMatrices(rows, body.mesh.graph.seq);
+      }
       // the replay's world stays on screen until the next reset
     }
   }
@@ -250,8 +310,9 @@ export class Playground {
     return {
       preset: this.preset,
       resets: this.resets,
-      spheres: this.proxies?.count ?? 0,
-      radius: this.proxies?.radius ?? 0,
+      meshes: this.bodies.map((b) => b.mesh.id),
+      spheres: this.bodies.reduce((n, b) => n + b.proxies.count, 0),
+      radii: this.bodies.map((b) => b.proxies.radius), // each mesh's, mesh frame
       showSpheres: this.view.showSpheres,
       steps: w?.steps ?? 0,
       boxes: w ? w.boxes.map(({ body }) => { const p = body.translation(); return [p.x, p.y, p.z]; }) : [],

@@ -1,6 +1,6 @@
 // A recorded take played back through the physics world, deterministically: a fresh world (fixed seed),
-// the proxies carried by the take's own frames (node matrices at the take's rate, linearly interpolated
-// to the fixed 1/60 s step), then a second of settling. The same take gives the same boxes every time.
+// every mesh of the take with its proxies carried by its own frames (node matrices at the take's rate,
+// linearly interpolated to the fixed 1/60 s step), then a second of settling. The same take gives the same boxes every time.
 import { type TransformBlock, decodeTransforms } from '../net/protocol';
 import { PhysicsWorld, STEP } from './PhysicsWorld';
 import type { PresetName } from './presets';
@@ -25,46 +25,71 @@ export function parseTakeTransforms(buffer: ArrayBuffer): TransformBlock[] {
   return frames;
 }
 
+/** One mesh of a take: its sphere proxies, its frames (node matrices) and where it stood (mesh → world,
+ * column-major 4 × 4). */
+export interface TakeTrack {
+  proxies: SphereProxies;
+  frames: TransformBlock[];
+  placement: ArrayLike<number>;
+}
+
 export class TakeReplay {
   readonly world: PhysicsWorld;
   readonly totalSteps: number;
-  readonly centres: Float32Array;
+  readonly centres: Float32Array; // every track's proxies, in track order
+  readonly frames: number; // the longest track's
   private readonly a: Float32Array;
   private readonly b: Float32Array;
-  private loaded = -1;
-  private readonly radius: number;
+  private readonly offsets: number[]; // where each track's proxies start in `centres`
+  private readonly loaded: number[];
+  private readonly radii: Float64Array;
 
-  /** frames at `fps`; placement: the mesh → world matrix (column-major 4 × 4) of the take. */
-  constructor(R: Rapier, readonly proxies: SphereProxies, readonly frames: TransformBlock[], readonly fps: number,
-              readonly placement: ArrayLike<number>, preset: PresetName, seed = 1) {
-    const n = 3 * proxies.count;
+  /** Every mesh of the take (its tracks) at `fps`; a track shorter than the others holds its last frame. */
+  constructor(R: Rapier, readonly tracks: TakeTrack[], readonly fps: number, preset: PresetName, seed = 1) {
+    this.offsets = [];
+    let n = 0;
+    for (const t of tracks) { this.offsets.push(n); n += 3 * t.proxies.count; }
     this.centres = new Float32Array(n);
     this.a = new Float32Array(n);
     this.b = new Float32Array(n);
-    this.radius = proxies.worldRadius(placement);
-    proxies.centres(frames[0].rows, placement, this.centres);
-    this.world = new PhysicsWorld(R, { preset, centres: this.centres, radius: this.radius, seed });
-    this.totalSteps = Math.round(((frames.length - 1) / fps) / STEP) + SETTLE_STEPS;
+    this.radii = new Float64Array(n / 3);
+    this.loaded = tracks.map(() => -1);
+    tracks.forEach((t, k) => {
+      this.radii.fill(t.proxies.worldRadius(t.placement), this.offsets[k] / 3, this.offsets[k] / 3 + t.proxies.count);
+      t.proxies.centres(t.frames[0].rows, t.placement, this.centres.subarray(this.offsets[k]));
+    });
+    this.frames = Math.max(...tracks.map((t) => t.frames.length));
+    this.world = new PhysicsWorld(R, { preset, centres: this.centres, radius: this.radii, seed });
+    this.totalSteps = Math.round(((this.frames - 1) / fps) / STEP) + SETTLE_STEPS;
   }
 
   get done(): boolean {
     return this.world.steps >= this.totalSteps;
   }
 
+  /** Each track's frame index at the end of the next step and the fraction towards the one after. */
+  private at(track: TakeTrack): [number, number, number] {
+    const t = ((this.world.steps + 1) * STEP) * this.fps; // where the proxies must be after this step, in frames
+    const last = track.frames.length - 1;
+    const i = Math.min(Math.floor(t), last);
+    const j = Math.min(i + 1, last);
+    return [i, j, j === i ? 0 : t - i];
+  }
+
   /** Advance one fixed step; false once the replay is over. */
   next(): boolean {
     if (this.done) return false;
-    const t = ((this.world.steps + 1) * STEP) * this.fps; // where the proxies must be after this step, in frames
-    const i = Math.min(Math.floor(t), this.frames.length - 1);
-    const j = Math.min(i + 1, this.frames.length - 1);
-    if (this.loaded !== i) {
-      this.proxies.centres(this.frames[i].rows, this.placement, this.a);
-      this.proxies.centres(this.frames[j].rows, this.placement, this.b);
-      this.loaded = i;
-    }
-    const f = j === i ? 0 : t - i;
-    for (let k = 0; k < this.centres.length; k++) this.centres[k] = this.a[k] + f * (this.b[k] - this.a[k]);
-    this.world.moveProxies(this.centres, this.radius);
+    this.tracks.forEach((track, k) => {
+      const [i, j, f] = this.at(track);
+      const o = this.offsets[k], end = o + 3 * track.proxies.count;
+      if (this.loaded[k] !== i) {
+        track.proxies.centres(track.frames[i].rows, track.placement, this.a.subarray(o, end));
+        track.proxies.centres(track.frames[j].rows, track.placement, this.b.subarray(o, end));
+        this.loaded[k] = i;
+      }
+      for (let m = o; m < end; m++) this.centres[m] = this.a[m] + f * (this.b[m] - this.a[m]);
+    });
+    this.world.moveProxies(this.centres, this.radii);
     this.world.step();
     return true;
   }

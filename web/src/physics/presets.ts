@@ -16,14 +16,15 @@ const TOWER = { columns: 2, rows: 2, levels: 5 };
 const THROW_SPEED = 7; // m/s towards a random point of the mesh
 const THROW_DISTANCE = 3.5; // m in front of the mesh (towards the default camera, +z)
 
-/** Bounds of the proxies' centres, grown by their radius. */
-export function sphereBounds(centres: Float32Array, radius: number): Bounds {
+/** Bounds of the proxies' centres, grown by their radius (one for all, or one per proxy). */
+export function sphereBounds(centres: Float32Array, radius: number | Float64Array): Bounds {
   const min: Vec3 = [Infinity, Infinity, Infinity];
   const max: Vec3 = [-Infinity, -Infinity, -Infinity];
   for (let i = 0; i < centres.length; i += 3) {
+    const r = typeof radius === 'number' ? radius : radius[i / 3];
     for (let k = 0; k < 3; k++) {
-      min[k] = Math.min(min[k], centres[i + k] - radius);
-      max[k] = Math.max(max[k], centres[i + k] + radius);
+      min[k] = Math.min(min[k], centres[i + k] - r);
+      max[k] = Math.max(max[k], centres[i + k] + r);
     }
   }
   if (!Number.isFinite(min[0])) return { min: [-0.5, 0, -0.5], max: [0.5, 1, 0.5] }; // no proxies

@@ -1,11 +1,20 @@
-// Record a take on the server (every solved frame) and offer its exports: GLB (the mesh animated),
-// BVH and the skeleton stream (.kinetre.jsonl).
+// Record a take on the server (every solved frame) and offer its exports, each mesh's alike: GLB (the mesh
+// animated), BVH and the skeleton stream (.kinetre.jsonl).
+
+/** One mesh that moved during the take, with its files (take-mesh<id>.*). */
+export interface TakeMeshFiles {
+  id: number;
+  name: string;
+  frames: number;
+  files: Record<string, string>; // kind ("glb", "transforms", "bvh", "stream") → URL
+}
 
 export interface TakeFiles {
   take: number;
   frames: number;
   fps: number;
-  files: Record<string, string>; // kind ("glb", "bvh", "stream") → URL
+  files: Record<string, string>; // "kind-id" → URL, every mesh's
+  meshes: TakeMeshFiles[];
 }
 
 export class TakeRecorder {

@@ -8,6 +8,7 @@ export class UpAxisControl {
   private readonly button: HTMLButtonElement;
   private readonly label: HTMLElement;
   private up = 'y';
+  private mesh: number | null = null; // the mesh whose axis is shown (the selected one)
   busy = false;
 
   constructor(area: HTMLElement, private readonly say: (text: string, error?: boolean) => void) {
@@ -23,8 +24,9 @@ export class UpAxisControl {
     this.button.addEventListener('click', () => void this.flip());
   }
 
-  /** Show the axis the server stood the current mesh on (from every state message). */
-  show(up: string | undefined, reason: string | undefined): void {
+  /** Show the axis the server stood mesh `mesh` on (the selected mesh, from every state message). */
+  show(mesh: number, up: string | undefined, reason: string | undefined): void {
+    this.mesh = mesh;
     this.up = up ?? 'y';
     this.button.textContent = this.up === 'y' ? 'Stand on +Z' : 'Stand on +Y';
     this.label.textContent = reason ?? '';
@@ -36,7 +38,7 @@ export class UpAxisControl {
     this.button.disabled = true;
     const up = this.up === 'y' ? 'z' : 'y';
     try {
-      const r = await fetch(`api/mesh/up?up=${up}`, { method: 'POST' });
+      const r = await fetch(`api/mesh/up?up=${up}${this.mesh === null ? '' : `&mesh=${this.mesh}`}`, { method: 'POST' });
       const reply = await r.json();
       if (!r.ok) throw new Error(reply.error ?? `up axis: HTTP ${r.status}`);
       this.say(`standing the mesh with its +${up.toUpperCase()} up…`);

@@ -21,7 +21,7 @@ export function installTestHook(studio: Studio): void {
   (window as unknown as { kinetre: object }).kinetre = {
     studio,
     state() {
-      const mesh = studio.firstMesh;
+      const mesh = studio.selectedMesh; // the mesh selected in the mesh list (at first the first listed)
       const vertexCount = mesh ? mesh.data.positions.length / 3 : 0;
       const median = (a: number[]) => (a.length ? [...a].sort((x, y) => x - y)[Math.floor(a.length / 2)] : null);
       return {
@@ -41,7 +41,7 @@ export function installTestHook(studio: Studio): void {
         puppet: studio.puppet.hand,
         attachableJoints: studio.preview?.attachableJoints.filter(Boolean).length ?? 0,
         users: studio.state?.users ?? [],
-        meshUp: studio.state?.meshes[0]?.up ?? null,
+        meshUp: studio.selectedState?.up ?? null,
         meshBox: mesh ? meshBox(mesh) : null,
         // every mesh of the scene, in its order: who possesses it, its box and sampled vertices as shown
         meshes: (studio.state?.meshes ?? []).map((m) => {
@@ -51,7 +51,7 @@ export function installTestHook(studio: Studio): void {
             meshBox: shown ? meshBox(shown) : null, transformsSeq: shown?.seq ?? 0,
             vertices: shown ? shown.skinnedPositions(sampleIndices(64, count)) : [] };
         }),
-        placement: studio.state?.meshes[0]?.placement ?? null,
+        placement: studio.selectedState?.placement ?? null,
         recording: studio.state?.recording ?? false,
         vertices: mesh ? mesh.skinnedPositions(sampleIndices(64, vertexCount)) : [],
         skeleton: studio.me.positions,
