@@ -237,7 +237,7 @@ def source_leg_length(positions: np.ndarray, tracked: np.ndarray) -> float | Non
 
 
 def retarget(plan: RetargetPlan, positions: np.ndarray, tracked: np.ndarray,
-             state: RetargetState | None = None) -> AvatarMotion:
+             state: RetargetState | None = None, root_turns: np.ndarray | None = None) -> AvatarMotion:
     """Algorithm 1 steps 2–6 for T frames of a Kinect-20 skeleton.
 
     Parameters
@@ -247,6 +247,10 @@ def retarget(plan: RetargetPlan, positions: np.ndarray, tracked: np.ndarray,
     tracked : (T, 20) bool
     state : RetargetState, optional
         Carried across calls (live streams); updated in place. A fresh state starts from the bind pose.
+    root_turns : (T, 3, 3) float64, optional
+        The source's own hips rotation from its T-pose (Kinetre's frame; `Take.hips_turns` of a VRM
+        Animation): where finite it is the root's rotation, in place of the torso frame's fit, so a take
+        Kinetre wrote on the normalised humanoid (avatar/normalized.py) turns the hips as it was written.
 
     Returns
     -------
@@ -264,7 +268,14 @@ def retarget(plan: RetargetPlan, positions: np.ndarray, tracked: np.ndarray,
     n = len(plan.order)
     last = np.tile(np.eye(3), (n, 1, 1)) if state.relative is None else state.relative.copy()
     displacement = np.ascontiguousarray(_root_displacement(plan, src, ok, pos, state))
-    rot, world, local = _frames(src, ok, displacement, last, plan.order, plan.parents, plan.root, _mover(plan),
+    turns = np.zeros((len(pos), 3, 3))
+    turned = np.zeros(len(pos), dtype=np.bool_)
+    if root_turns is not None:
+        r = np.asarray(root_turns, dtype=np.float64)
+        turned = np.isfinite(r).all(axis=(1, 2))
+        # R(hips) = a R_T aᵀ: the normalised humanoid's hips turn (C(hips) = I) in the avatar's facing
+        turns[turned] = plan.align @ r[turned] @ plan.align.T
+    rot, world, local = _frames(src, ok, displacement, last, turns, turned, plan.order, plan.parents, plan.root, _mover(plan),
                                 plan.aim_from, plan.aim_to, plan.twist, plan.rest_aim, plan.rest_shoulders,
                                 plan.root_frame, plan.bind_linear, plan.bind_positions, plan.real_parents,
                                 plan.fixed_parent, _K["HipCenter"], _K["ShoulderCenter"], _K["HipLeft"],
@@ -356,7 +367,7 @@ def _torso(up, side):
 
 
 @njit(cache=True)
-def _frames(src, ok, displacement, last, order, parents, root, mover, aim_from, aim_to, twist, rest_aim,
+def _frames(src, ok, displacement, last, turns, turned, order, parents, root, mover, aim_from, aim_to, twist, rest_aim,
             rest_shoulders, root_frame, bind_linear, bind_positions, real_parents, fixed_parent,
             hc, sc, hl, hr, sl, sr):
     t_count, n = src.shape[0], len(order)
@@ -372,7 +383,10 @@ def _frames(src, ok, displacement, last, order, parents, root, mover, aim_from, 
             parent = eye if vp < 0 else rot[t, vp].copy()
             valid = False
             w = eye
-            if j == root:
+            if j == root and turned[t]:
+                w = turns[t].copy()
+                valid = True
+            elif j == root:
                 side = np.zeros(3)
                 pairs = 0
                 if ok[t, hl] and ok[t, hr]:

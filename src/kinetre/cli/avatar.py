@@ -98,7 +98,7 @@ def cmd_avatar(args) -> int:
     motion = own_motion(avatar, take) if own else None
     if motion is None:
         take = kinect_take(take)
-        motion = retarget(plan, take.positions, take.tracked)
+        motion = retarget(plan, take.positions, take.tracked, root_turns=take.hips_turns)
     else:
         say(f"{args.motion} is on the avatar's own skeleton: played as it is")
     motion, morphs = hands_and_face(avatar, bonemap, plan, motion, take, say)

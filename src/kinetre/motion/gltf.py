@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import math
 import os
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -435,8 +435,22 @@ def load_gltf(path: str | os.PathLike, animation: str | int | None = None, fps: 
         hmap = take_map(names, parents, rest, tips=tips, vrm=vrm or None)
         if hmap is not None:
             mapped = _own_take(d, info.index, world, float(fps), source, handles=True, tips="end" if tips else "")
-            return kinect_take(hmap, mapped, upright(hmap, rest), native=own)
+            turn = upright(hmap, rest)
+            take = kinect_take(hmap, mapped, turn, native=own)
+            if "hips" in vrm:
+                take = replace(take, hips_turns=_hips_turns(d, world, skeleton_nodes(d, info.index, True)[0],
+                                                            vrm["hips"], turn))
+            return take
     return own
+
+
+def _hips_turns(d: GltfDocument, world: np.ndarray, nodes: list[int], hips: int, turn: np.ndarray) -> np.ndarray:
+    """(T, 3, 3) a VRM Animation's hips rotation from its rest pose (the T-pose the format defines), in the
+    take's frame: three-vrm plays the hips by the same relative turn."""
+    node = nodes[hips]
+    rest = rotation_part(world_matrices(d, None, np.zeros(1))[0, node, :3, :3])
+    now = rotation_part(world[:, node, :3, :3])
+    return turn @ now @ rest.T @ turn.T
 
 
 def _own_take(d: GltfDocument, index: int, world: np.ndarray, fps: float, source: str, handles: bool = False,

@@ -47,6 +47,10 @@ class Take:
     applied : dict or None
         What cleaned the take after tracking (smoothing, contact; `kinetre.motion.cleanup`), as written in the
         take file's header; None for a take as its source gave it.
+    hips_turns : (T, 3, 3) float64 or None
+        A VRM Animation's hips rotation from its rest T-pose (VRM's frame: facing +Z, +Y up), in the take's
+        frame: the humanoid's root turn as its author posed it, which a torso frame fitted to the joints only
+        approximates. None for other sources.
     native : Take or None
         A take mapped to Kinect-20 from a file's own skeleton: that skeleton as the file has it (its joints,
         units and frame, before the mapping's turn), so a source that already lies inside a mesh can drive
@@ -74,6 +78,7 @@ class Take:
     bone_frames: np.ndarray | None = None
     native: "Take | None" = None
     applied: dict | None = None
+    hips_turns: np.ndarray | None = None
 
     def __post_init__(self):
         pos = np.asarray(self.positions, dtype=np.float64)
@@ -97,6 +102,11 @@ class Take:
             if rot.shape != pos.shape + (3,):
                 raise BadMotionError(f"{where}: bone_frames must be {pos.shape + (3,)}, got {rot.shape}")
             object.__setattr__(self, "bone_frames", rot)
+        if self.hips_turns is not None:
+            turns = np.asarray(self.hips_turns, dtype=np.float64)
+            if turns.shape != (pos.shape[0], 3, 3):
+                raise BadMotionError(f"{where}: hips_turns must be {(pos.shape[0], 3, 3)}, got {turns.shape}")
+            object.__setattr__(self, "hips_turns", turns)
         if self.native is not None and len(self.native) != pos.shape[0]:
             raise BadMotionError(f"{where}: the native take has {len(self.native)} frames, not {pos.shape[0]}")
 
@@ -130,9 +140,12 @@ class Take:
         move = points or (lambda x: x)
         pick = lambda x: None if x is None else x[s]  # noqa: E731
         rot = None if self.bone_frames is None else self.bone_frames[s]
+        hips = None if self.hips_turns is None else self.hips_turns[s]
         if rot is not None and turn is not None:
             rot = turn @ rot
-        return {"bone_frames": rot, "people": self.people,
+        if hips is not None and turn is not None:
+            hips = turn @ hips @ turn.T
+        return {"bone_frames": rot, "hips_turns": hips, "people": self.people,
                 "crowd_positions": None if self.crowd_positions is None else move(self.crowd_positions[s]),
                 "crowd_tracked": pick(self.crowd_tracked),
                 "hands": None if self.hands is None else move(self.hands[s]),
