@@ -12,6 +12,7 @@ import asyncio
 import json
 import logging
 import threading
+from pathlib import Path
 from typing import Protocol
 
 from ..errors import KinetreError
@@ -19,7 +20,7 @@ from ..mesh.upright import AXES
 from .channels import Channels, Frame, now_ms
 from .jobs import Job, Jobs, prepare_upload
 from .meshes import NODES, mesh_payload, prepare_upright
-from .player import SAMPLE_CLIENT, MotionPlayer
+from .player import SAMPLE_CLIENT, MotionPlayer, read_motion
 from .protocol import (ProtocolError, check_hand, check_subset, is_person_of, parse_mesh, parse_person,
                        parse_place, person_client)
 from .recording import Takes, record_take
@@ -70,6 +71,10 @@ class SceneHost(Protocol):
 
     async def stop_recording(self) -> dict:
         """End the take and export it into `takes`: {"take", "frames", "fps", "files"}; KinetreError if empty."""
+
+    async def play_motion(self, name: str, data: bytes) -> dict:
+        """Play an uploaded motion file in a loop as the sample motion: {"motion", "frames", "fps"};
+        KinetreError for a file that does not read or a host that cannot play one."""
 
     def set_joint_map(self, joint_map) -> dict | None:
         """Use `joint_map` (a JointMap, or None to clear) for the next possessions; the state's joint_map."""
@@ -191,6 +196,19 @@ class LocalScene:
         if self.player is not None and self.player.playing:
             self.player.playing = False
             await self.scene.release(SAMPLE_CLIENT)
+
+    async def play_motion(self, name: str, data: bytes) -> dict:
+        """Play an uploaded motion file (`player.PLAYABLE`) as the sample motion, in a loop, possessing the
+        mesh as the sample does; BadMotionError for a file that does not read or is no humanoid."""
+        frames, fps = await asyncio.to_thread(read_motion, name, data)
+        if self.player is None:
+            self.player = MotionPlayer(self.hub, frames, fps, SAMPLE_CLIENT, playing=False)
+            self.tasks.append(asyncio.get_running_loop().create_task(self.player.run()))
+        else:
+            await self.stop_sample()
+            self.player.frames, self.player.fps = frames, fps
+        await self.start_sample()
+        return {"motion": Path(name).name, "frames": len(frames), "fps": fps}
 
     # --- meshes ---------------------------------------------------------------------------------------
     def _mesh_ready(self, job: Job, mesh, graph, name: str, upright, raw, replace: int | None) -> None:

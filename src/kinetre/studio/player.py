@@ -2,15 +2,18 @@
 
 It is the sample motion that keeps the page alive before any camera is granted: it publishes frames
 exactly like a webcam page does (on `skeleton_subject(client)`), so the scene cannot tell them apart.
+A motion file the user uploads (BVH, glTF, VRM Animation, a Kinetre take) plays the same way (`read_motion`).
 """
 from __future__ import annotations
 
 import asyncio
+import tempfile
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 
-from ..errors import KinetreError
+from ..errors import BadMotionError, KinetreError
 from ..skeleton.models import Skeleton
 from .channels import Channels, Frame, now_ms
 from .meshes import data_path
@@ -18,6 +21,8 @@ from .protocol import SkeletonFrame, skeleton_json
 from .subjects import skeleton_subject
 
 SAMPLE_CLIENT = "sample"
+# motion files a user may upload to play instead of the sample (a single-file glTF: .glb or embedded .gltf)
+PLAYABLE = (".bvh", ".vrma", ".glb", ".gltf", ".kinetre.jsonl")
 
 
 def in_place(frames: list[Skeleton], root: int = 0) -> list[Skeleton]:
@@ -67,12 +72,11 @@ class MotionPlayer:
         """Publish frames in real time (frames are skipped, not delayed, when the loop is late)."""
         loop = asyncio.get_running_loop()
         start = loop.time()
-        period = 1.0 / self.fps
         while True:
-            if self.playing:
-                index = int((loop.time() - start) / period)
+            if self.playing:  # frames and fps change when the user loads another motion
+                index = int((loop.time() - start) * self.fps)
                 self.publish(index, now_ms())
-            await asyncio.sleep(period)
+            await asyncio.sleep(1.0 / self.fps)
 
 
 def decimate(frames: list[Skeleton], fps: float, target: float = 30.0) -> tuple[list[Skeleton], float]:
@@ -92,3 +96,28 @@ def sample_player(hub: Channels) -> MotionPlayer | None:
         return None
     frames, fps = decimate(in_place(frames), fps)
     return MotionPlayer(hub, frames, fps, SAMPLE_CLIENT)
+
+
+def read_motion(name: str, data: bytes) -> tuple[list[Skeleton], float]:
+    """An uploaded motion file (`PLAYABLE`) as the looping frames of a human skeleton (Kinect-20, travel
+    removed) and their rate.
+
+    Raises
+    ------
+    BadMotionError
+        An unknown format, a file that does not read, a skeleton that is not a humanoid.
+    """
+    from ..avatar.bonemap import kinect_take
+    from ..motion.source import load_take
+    base = Path(name).name or "motion"
+    if not base.lower().endswith(PLAYABLE):
+        raise BadMotionError(f"{base}: not a motion file the studio plays (expected one of {', '.join(PLAYABLE)})")
+    with tempfile.TemporaryDirectory(prefix="kinetre-motion-") as tmp:
+        path = Path(tmp) / base
+        path.write_bytes(data)
+        try:
+            take = kinect_take(load_take(str(path)))
+        except KinetreError as exc:  # the user's file by its name, not the temporary copy's path
+            raise BadMotionError(str(exc).replace(str(path), base)) from None
+    frames = [take.frame(i) for i in range(len(take))]
+    return decimate(in_place(frames), float(take.fps))

@@ -172,6 +172,10 @@ class GatewayScene:
     def set_up(self, up: str, mesh_id: int | None = None) -> Job:
         raise KinetreError("this studio relays to a remote scene: its mesh is stood up on the scene's own studio")
 
+    async def play_motion(self, name: str, data: bytes) -> dict:
+        raise KinetreError("this studio relays to a remote scene: a motion file is played on the scene's own "
+                           "studio, not through a gateway")
+
     def set_joint_map(self, joint_map) -> dict | None:
         raise KinetreError("this studio relays to a remote scene: a joint map is set on the scene's own "
                            "studio, not through a gateway")

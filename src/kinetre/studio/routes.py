@@ -16,6 +16,8 @@
     POST /api/record/start     start recording a take; /api/record/stop ends it and exports GLB, BVH, stream
                                and the node transforms the page replays the physics from
     GET  /api/takes/{id}/{f}   a file of a recorded take
+    POST /api/motion?name=F    play a motion file (BVH, glTF/GLB, VRM Animation .vrma, a Kinetre take) in a loop as
+                               the sample motion, which possesses the mesh as the sample does
     POST /api/jointmap?name=F  a joint map (JSON, docs/joint-maps.md): the n-th user to possess drives with the
                                joints its n-th source keeps; DELETE /api/jointmap clears it
 """
@@ -161,6 +163,15 @@ def api_routes(host: SceneHost, hub: Channels, connected: Callable[[str], bool])
             return JSONResponse({"error": f"no file {name} in take {take_id}"}, 404)
         return FileResponse(path, filename=f"kinetre-{take_id}-{path.name}")
 
+    async def motion_post(request: Request) -> Response:
+        name, data, too_big = await read_upload(request, "motion", MAX_UPLOAD)
+        if too_big is not None:
+            return too_big
+        try:
+            return JSONResponse(await host.play_motion(name, data))
+        except KinetreError as exc:
+            return JSONResponse({"error": str(exc)}, 400)
+
     async def joint_map(request: Request) -> Response:
         from ..motion.jointmap import parse_joint_map
         try:
@@ -185,6 +196,7 @@ def api_routes(host: SceneHost, hub: Channels, connected: Callable[[str], bool])
         Route("/api/mesh/up", mesh_up, methods=["POST"]),
         Route("/api/jobs/{job_id:int}", job_get),
         Route("/api/voice", voice_post, methods=["POST"]),
+        Route("/api/motion", motion_post, methods=["POST"]),
         Route("/api/record/start", record_start, methods=["POST"]),
         Route("/api/record/stop", record_stop, methods=["POST"]),
         Route("/api/takes/{take_id:int}/{name}", take_get),

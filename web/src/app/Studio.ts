@@ -26,6 +26,7 @@ import { Viewport } from '../scene/Viewport';
 import { Panel } from '../ui/Panel';
 import { type MeshChoice, PeopleList } from '../ui/PeopleList';
 import { JointMapControl } from '../rigging/JointMapControl';
+import { MotionFileControl } from '../ui/MotionFileControl';
 import { PuppetControl, possessMessage, puppetFromQuery } from '../rigging/PuppetControl';
 import { UpAxisControl } from '../rigging/UpAxisControl';
 import { VoiceListener, type VoiceResult } from '../voice/VoiceListener';
@@ -60,6 +61,7 @@ export class Studio {
   readonly takes: TakeSession;
   readonly uploader: MeshUploader;
   readonly jointMap: JointMapControl;
+  readonly motionFile: MotionFileControl;
   readonly puppet: PuppetControl;
   readonly upAxis: UpAxisControl;
   readonly meshList: MeshList;
@@ -137,6 +139,7 @@ export class Studio {
     }, (file) => this.avatars.tryUpload(file));
     this.uploader.bind(root, this.panel.fileInput, this.panel.addInput);
     this.jointMap = new JointMapControl(this.panel.area('body'), say);
+    this.motionFile = new MotionFileControl(this.panel.area('scene'), say);
     // a hand chosen while possessing takes over from the body (or the other hand) at once
     this.puppet = new PuppetControl(this.panel.area('body').querySelector('#body-drive') as HTMLElement,
       puppetFromQuery(new URLSearchParams(location.search)), () => {
