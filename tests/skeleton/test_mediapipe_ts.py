@@ -10,7 +10,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from kinetre.skeleton.mediapipe import FLIP, VISIBLE, kinect_from_mediapipe
+from kinetre.skeleton.mediapipe import FLIP, VISIBLE, kinect_from_mediapipe, root_translation
 from web_bundle import bundled
 
 RUNNER = Path(__file__).resolve().parent / "node" / "kinect_mapper_ts.mjs"
@@ -78,3 +78,44 @@ def test_the_root_is_where_the_camera_saw_the_body_and_the_feet_stand_on_the_flo
     np.testing.assert_allclose(first[0], [stand[0], first[0][1], STAGE_DISTANCE - stand[2]], atol=1e-9)
     assert min(first[15][1], first[19][1]) == pytest.approx(0.0, abs=1e-9)  # FootLeft on the floor
     np.testing.assert_allclose(second[0] - first[0], step @ FLIP.T, atol=1e-9)  # the floor stays put
+
+
+def test_a_torso_leaning_toward_the_camera_stays_where_it_stands(bundle):
+    """A body bowing toward the camera looks shorter in the image, and is as short seen from there in metres:
+    its depth is unchanged. (Its torso's length in metres against its length in the image read it as a body
+    twice as far away: the two people of a horse flung metres back for a frame.)"""
+    upright = np.zeros((33, 3))
+    upright[[11, 12]] = [[-0.18, -0.5, 0.0], [0.18, -0.5, 0.0]]
+    upright[[23, 24]] = [[-0.1, 0.0, 0.0], [0.1, 0.0, 0.0]]
+    upright[[25, 26]] = [[-0.1, 0.42, 0.0], [0.1, 0.42, 0.0]]  # knees
+    upright[[27, 28, 31, 32]] = [[-0.1, 0.85, 0.0], [0.1, 0.85, 0.0], [-0.1, 0.9, -0.05], [0.1, 0.9, -0.05]]
+    bowed = upright.copy()
+    bowed[[11, 12]] = [[-0.18, -0.25, -0.43], [0.18, -0.25, -0.43]]  # shoulders 60 degrees toward the camera
+    visibility = np.ones(33)
+    stand = np.array([0.4, 0.3, 8.0])  # small in the view, as the dancers of a two-person horse are
+    out = run(bundle, [(marks(w, visibility), marks(seen(w, stand), visibility)) for w in (upright, bowed)])
+    first, second = (np.array(o["positions"], dtype=float) for o in out)
+    assert first[0][2] == pytest.approx(STAGE_DISTANCE - stand[2], abs=1e-9)
+    np.testing.assert_allclose(second[0], first[0], atol=1e-9)
+
+
+def test_the_page_places_the_root_where_the_python_twin_does(bundle):
+    """Landmarks that no pinhole fits exactly (MediaPipe's image and world landmarks disagree by a few
+    pixels and centimetres): the page's root is the least-squares translation `kinetre capture` finds."""
+    rng = np.random.default_rng(11)
+    width, height = 640, 480  # ASPECT
+    fov = np.degrees(2 * np.arctan(0.5 / FOCAL))
+    frames, roots = [], []
+    for k in range(8):
+        world = rng.normal(0.0, 0.4, (33, 3))
+        world -= (world[23] + world[24]) / 2
+        visibility = np.where(rng.uniform(size=33) < 0.2, 0.1, 0.9)
+        visibility[[23, 24, 27, 28, 31, 32]] = 0.9  # the hip centre (the root) and the feet (the floor)
+        image = seen(world, np.array([0.3 * k - 1.0, 0.1, 3.0 + k])) + rng.normal(0.0, 0.004, (33, 3))
+        frames.append((marks(world, visibility), marks(image, np.ones(33))))
+        roots.append(root_translation(world, image[:, :2], visibility >= VISIBLE, width, height, fov))
+    out = run(bundle, frames)
+    got = np.array([o["positions"][0] for o in out], dtype=float)
+    want = np.array(roots) @ FLIP.T  # +Y up, +Z toward the camera
+    np.testing.assert_allclose(got[:, [0, 2]] - [0, STAGE_DISTANCE], want[:, [0, 2]], atol=1e-9)
+    np.testing.assert_allclose(np.diff(got[:, 1]), np.diff(want[:, 1]), atol=1e-9)  # the floor is the page's
