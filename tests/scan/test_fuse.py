@@ -53,3 +53,27 @@ def test_empty_volume_renders_and_meshes_nothing():
     color, depth = volume.raycast(camera, np.eye(4))
     assert color.shape == (12, 16, 3) and not depth.any()
     assert len(volume.triangle_mesh()[1]) == 0
+
+
+def test_ray_cast_covers_whole_range_tiles():
+    """Open3D bounds rays by one range entry per 8x8 pixels, sized by whole tiles; a pixel past the last whole
+    tile read beyond that map and could march forever. A 40x30 camera is cast as 40x32 and cropped."""
+    from kinetre.scan.fuse import RANGE_TILE
+    camera = Intrinsics(40, 30, 36.0, 36.0, 19.5, 14.5)
+    depth = np.full((30, 40), 1.2, np.float32)
+    volume = TSDFVolume(0.05, block_count=2000)
+    volume.integrate(np.zeros((30, 40, 3), np.uint8), depth, camera, np.eye(4))
+    grid, sizes = volume.grid, []
+
+    class Spy:
+        def __getattr__(self, name):
+            return getattr(grid, name)
+
+        def ray_cast(self, *args):
+            sizes.append((args[3], args[4], args[-1]))
+            return grid.ray_cast(*args)
+
+    volume.grid = Spy()
+    color, rendered = volume.raycast(camera, np.eye(4))
+    assert sizes == [(40, 32, RANGE_TILE)] and RANGE_TILE == 8
+    assert color.shape == (30, 40, 3) and rendered.shape == (30, 40)

@@ -31,6 +31,13 @@ from .frames import Intrinsics
 # with 4 voxels it was still eroded, with 3 it is whole (its surface 10-12 mm from the axis, radius 10 mm).
 TRUNC_VOXELS = 3.0
 
+# Open3D's ray cast first bounds each ray by a range map with one entry per RANGE_TILE x RANGE_TILE pixels,
+# sized width // RANGE_TILE by height // RANGE_TILE: the pixels past the last whole tile read beyond that map,
+# memory nobody wrote. Garbage there can make a ray march forever (a step too small to move t towards an
+# enormous bound: the ray cast of a 40x30 frame hung in about one run in three) or lose those rows (Open3D
+# issues 4658 and 6821). So rays are cast on the image padded to whole tiles, and the pad is cut off.
+RANGE_TILE = 8
+
 
 def open3d():
     """Import Open3D, the optional `scan` extra, with an install hint instead of a bare ImportError."""
@@ -108,26 +115,30 @@ class TSDFVolume:
         out = self._raycast(camera, pose, ["depth", "color"])
         if out is None:
             return np.zeros((camera.height, camera.width, 3), np.float32), self.raycast_depth(camera, pose)
-        return np.clip(out["color"].numpy(), 0.0, 1.0).astype(np.float32), self._depth(out)
+        return np.clip(out["color"], 0.0, 1.0).astype(np.float32), self._depth(out)
 
     def raycast_depth(self, camera: Intrinsics, pose: np.ndarray) -> np.ndarray:
         """The depth (H, W) float32 metres (0 = none) of `raycast`, without the colour (a fifth cheaper)."""
         out = self._raycast(camera, pose, ["depth"])
         return np.zeros((camera.height, camera.width), np.float32) if out is None else self._depth(out)
 
-    def _raycast(self, camera: Intrinsics, pose: np.ndarray, attributes: list):
+    def _raycast(self, camera: Intrinsics, pose: np.ndarray, attributes: list) -> dict[str, np.ndarray] | None:
+        """attribute -> (H, W, C) array of the ray cast from `pose`, None when nothing is fused."""
         shifted = np.array(pose, dtype=np.float64)
         shifted[:3, 3] += 0.5 * self.voxel_size  # Open3D's ray caster is half a voxel short (module notes)
         k, extrinsic = self._tensor(camera.matrix), self._tensor(np.linalg.inv(shifted))
         blocks = self._active_blocks()
         if blocks.shape[0] == 0:
             return None
-        return self.grid.ray_cast(blocks, k, extrinsic, camera.width, camera.height, attributes,
-                                  1.0, 0.1, self.depth_max, 1.0, self.trunc_voxels)
+        # whole range-map tiles (RANGE_TILE): the same camera on a wider and taller image, pixel for pixel
+        width, height = (-(-n // RANGE_TILE) * RANGE_TILE for n in (camera.width, camera.height))
+        out = self.grid.ray_cast(blocks, k, extrinsic, width, height, attributes, 1.0, 0.1, self.depth_max,
+                                 1.0, self.trunc_voxels, RANGE_TILE)
+        return {name: out[name].numpy()[: camera.height, : camera.width] for name in attributes}
 
     @staticmethod
-    def _depth(out) -> np.ndarray:
-        depth = out["depth"].numpy()[..., 0].copy()
+    def _depth(out: dict[str, np.ndarray]) -> np.ndarray:
+        depth = out["depth"][..., 0].copy()
         depth[~np.isfinite(depth)] = 0.0
         return depth
 
