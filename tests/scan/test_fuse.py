@@ -77,3 +77,7 @@ def test_ray_cast_covers_whole_range_tiles():
     color, rendered = volume.raycast(camera, np.eye(4))
     assert sizes == [(40, 32, RANGE_TILE)] and RANGE_TILE == 8
     assert color.shape == (30, 40, 3) and rendered.shape == (30, 40)
+    # a new grid's range-rectangle buffer is reserved (fuse.FRAGMENTS_PER_BLOCK): without that, this first
+    # ray cast rendered nothing, and a later one of the same view could drop a block
+    assert (rendered > 0).mean() > 0.5
+    assert np.array_equal(volume.raycast_depth(camera, np.eye(4)), rendered)

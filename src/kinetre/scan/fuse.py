@@ -37,6 +37,13 @@ TRUNC_VOXELS = 3.0
 # enormous bound: the ray cast of a 40x30 frame hung in about one run in three) or lose those rows (Open3D
 # issues 4658 and 6821). So rays are cast on the image padded to whole tiles, and the pad is cut off.
 RANGE_TILE = 8
+# Open3D 0.19 keeps the rectangles that build that range map (one or more per block in view) in a buffer of
+# the grid, first sized by a guess that is 0 for a small image and large voxels. A ray cast needing more
+# rectangles than it holds drops the blocks past its end (their tiles render empty: a fresh grid's first
+# ray cast of a 40x30 frame rendered nothing), may read rectangles nobody wrote (a ray marching forever
+# again), and only then grows it to exactly what it needed, so the next ray cast of the same view drops a
+# block again. A new grid therefore gets a buffer of FRAGMENTS_PER_BLOCK rectangles per block it reserves.
+FRAGMENTS_PER_BLOCK = 2
 
 
 def open3d():
@@ -87,6 +94,17 @@ class TSDFVolume:
             ("tsdf", "weight", "color"), (c.float32, c.float32, c.float32), ((1), (1), (3)),
             self.voxel_size, *self._layout, c.Device("CPU:0"))
         self.frames = 0
+        self._reserve_fragments()
+
+    def _reserve_fragments(self) -> None:
+        """Grow the grid's range-rectangle buffer (FRAGMENTS_PER_BLOCK) by one small ray cast that needs that many:
+        as many copies of one block, each seen as a single 2x2-pixel rectangle by a 16x16 camera (the block
+        spans 1 to 2 block sizes in depth and 0 to 1 across, so its projection is the same at any voxel size)."""
+        count = FRAGMENTS_PER_BLOCK * self._layout[1] + int(2 / self.voxel_size)
+        keys = self._core.Tensor(np.tile(np.array([[0, 0, 1]], np.int32), (count, 1)))
+        k = self._tensor(np.array([[1.0, 0.0, 4.0], [0.0, 1.0, 4.0], [0.0, 0.0, 1.0]]))
+        self.grid.ray_cast(keys, k, self._tensor(np.eye(4)), 16, 16, ["depth"], 1.0, 0.1, self.depth_max, 1.0,
+                           self.trunc_voxels, 1)
 
     # --- Open3D conversions (depth in metres everywhere, so depth_scale = 1) ---
     def _image(self, array: np.ndarray):
