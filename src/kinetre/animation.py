@@ -26,6 +26,7 @@ from .stopwatch import Stopwatch
 
 if TYPE_CHECKING:
     from .mesh.upright import Upright
+    from .preprocessed import MeshCache
 
 FITS = (None, "mesh", "height", "length")
 SOLVERS = (None, "pcg", "exact")
@@ -113,7 +114,7 @@ class Animation:
 
 def animate(mesh: Mesh, take: Take, settings: AnimateSettings = AnimateSettings(),
             on_frame: Callable[[int], None] | None = None,
-            on_step: Callable[[str], None] | None = None) -> Animation:
+            on_step: Callable[[str], None] | None = None, kept: MeshCache | None = None) -> Animation:
     """Drive `mesh` with every frame of `take`.
 
     Parameters
@@ -123,6 +124,8 @@ def animate(mesh: Mesh, take: Take, settings: AnimateSettings = AnimateSettings(
     settings : AnimateSettings
     on_frame : called with each frame's index once it is solved (progress)
     on_step : called with "graph", "placement", "attach" as each rigging step ends (progress)
+    kept : the mesh file's kept preprocessing (`kinetre.preprocessed`): its graph with weights for these
+        settings is taken from there when kept, else built and kept there
 
     Raises
     ------
@@ -147,9 +150,13 @@ def animate(mesh: Mesh, take: Take, settings: AnimateSettings = AnimateSettings(
     upright = _upright(mesh, take, s)
     mesh = turned(mesh, upright.up)
     standing = _standing_source(take, mesh, s)
-    graph = kinetre.build_graph(mesh, nodes=s.nodes, seed=s.seed, weights=False)
-    # the skinning weights (only a solved animation needs them) are computed on another core meanwhile
-    weighing = _weigh_in_background(graph, mesh) if s.solve else None
+    graph = kept.graph(upright.up, s.nodes, s.seed) if kept is not None and s.solve else None
+    weighing = None
+    if graph is None:
+        graph = kinetre.build_graph(mesh, nodes=s.nodes, seed=s.seed, weights=False)
+        # the skinning weights (only a solved animation needs them) are computed on another core meanwhile
+        keep = (lambda g: kept.keep_graph(g, upright.up, s.nodes, s.seed)) if kept is not None else None
+        weighing = _weigh_in_background(graph, mesh, keep) if s.solve else None
     step("graph")
     lap("graph")
     fit_mesh = s.fit == "mesh"
@@ -196,7 +203,9 @@ def animate(mesh: Mesh, take: Take, settings: AnimateSettings = AnimateSettings(
                 on_frame(i)
         lap("solve")
         wait = time.perf_counter()
-        graph, seconds["weights_cpu"] = weighing.result()
+        seconds["weights_cpu"] = 0.0  # a kept graph comes with its weights
+        if weighing is not None:
+            graph, seconds["weights_cpu"] = weighing.result()
         seconds["weights_wait_s"] = time.perf_counter() - wait
     graph_out = placement.graph(graph) if fit_mesh else graph
     return Animation(mesh_out, graph_out, tuple(poses), out_take, placement, rig, shape, notes, seconds, upright)
@@ -232,10 +241,11 @@ def _standing_source(take: Take, mesh: Mesh, s: AnimateSettings) -> Take | None:
     return source
 
 
-def _weigh_in_background(graph, mesh):
+def _weigh_in_background(graph, mesh, keep=None):
     """A future of (`graph` with `mesh`'s skinning weights, the CPU seconds they took), computed in a thread:
     the weights kernels release the GIL, so on a machine with a free core they cost no time beside the
-    attach and solve (about 0.2 s of a 3 s command on a 386k-vertex mesh)."""
+    attach and solve (about 0.2 s of a 3 s command on a 386k-vertex mesh). `keep`, if given, is then called
+    with the weighted graph in the thread (to write it to the cache meanwhile too)."""
     from concurrent.futures import ThreadPoolExecutor
 
     from .graph.build import with_weights
@@ -243,7 +253,11 @@ def _weigh_in_background(graph, mesh):
 
     def weigh():
         cpu = time.thread_time()
-        return with_weights(graph, mesh), time.thread_time() - cpu
+        weighted = with_weights(graph, mesh)
+        cpu = time.thread_time() - cpu
+        if keep is not None:
+            keep(weighted)
+        return weighted, cpu
 
     # load the kernels here first: the thread then runs compiled code only, never numba's compiler or an
     # import, which the main thread may be doing at the same time

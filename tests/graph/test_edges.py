@@ -64,3 +64,46 @@ def test_build_graph_always_connected_on_disjoint_parts():
     g = kinetre.build_graph(m, nodes=90, seed=0)
     assert _connected(g.node_count, g.edges)
     assert g.bridges.sum() >= 2
+
+
+def _networkx_marks(n, edges):
+    """The rule of `bridge_edges` as networkx computes it: bridges, then per cut vertex every part of the
+    graph without it but the largest (the first found of equal ones)."""
+    g = nx.Graph()
+    g.add_nodes_from(range(n))
+    g.add_edges_from(map(tuple, edges.tolist()))
+    index = {tuple(e): i for i, e in enumerate(edges.tolist())}
+    marked = np.zeros(len(edges), dtype=bool)
+    for a, b in nx.bridges(g):
+        marked[index[(min(a, b), max(a, b))]] = True
+    for c in nx.articulation_points(g):
+        parts = sorted(nx.connected_components(g.subgraph([v for v in g if v != c])), key=len, reverse=True)
+        for part in parts[1:]:
+            for v in g.neighbors(c):
+                if v in part:
+                    marked[index[(min(c, v), max(c, v))]] = True
+    return marked
+
+
+def test_marks_match_networkx_on_random_sparse_graphs():
+    # trees, chains, cycles with pendants, several components, equal-sized parts: the cases cut vertices make
+    rng = np.random.default_rng(3)
+    cases = 0
+    for trial in range(300):
+        n = int(rng.integers(2, 40))
+        m = int(rng.integers(0, 2 * n))
+        pairs = rng.integers(0, n, size=(m, 2))
+        pairs = pairs[pairs[:, 0] != pairs[:, 1]]
+        if trial % 3 == 0:  # a path through every node, so long chains and deep searches occur
+            pairs = np.concatenate([pairs, np.stack([np.arange(n - 1), np.arange(1, n)], axis=1)])
+        edges = np.unique(np.sort(pairs, axis=1), axis=0).astype(np.int32).reshape(-1, 2)
+        want = _networkx_marks(n, edges)
+        np.testing.assert_array_equal(bridge_edges(n, edges), want, err_msg=f"trial {trial}: {edges.tolist()}")
+        cases += bool(want.any())
+    assert cases > 100
+
+
+def test_a_long_chain_does_not_exhaust_the_stack():
+    n = 20000
+    edges = np.stack([np.arange(n - 1), np.arange(1, n)], axis=1).astype(np.int32)
+    assert bridge_edges(n, edges).all()

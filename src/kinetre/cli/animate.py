@@ -62,6 +62,10 @@ def register(sub) -> None:
     p.add_argument("--max-frames", type=int, default=None, help="stop after this many output frames")
     p.add_argument("--no-skeleton", dest="skeleton", action="store_false", help="video: do not draw the skeleton")
     add_cleanup_options(p)
+    p.add_argument("--no-cache", dest="cache", action="store_false",
+                   help="load and preprocess the mesh afresh, neither reading nor keeping its cleaned mesh, "
+                        "graph and weights in the per-user cache (kept by default, found again by the file's "
+                        "content and the settings)")
     p.add_argument("-q", "--quiet", action="store_true", help="no progress or summary")
     p.add_argument("--progress", action="store_true",
                    help="progress as lines on stderr ('kinetre: progress: solving 12/120'), for a program running "
@@ -111,6 +115,7 @@ def _animate(args, stats: dict | None) -> int:
     say = (lambda *a: None) if args.quiet else print
     take, motion_label = _load_motions(args)  # small: fail fast
     scan_notes: tuple[str, ...] = ()
+    kept = None  # the mesh file's kept preprocessing (`kinetre.preprocessed`)
     from ..scan.subject import is_frames
     if is_frames(args.mesh):  # RGB-D frames: scan (plane segmentation by default), then rig and animate
         from ..scan.subject import scan_subject
@@ -128,7 +133,10 @@ def _animate(args, stats: dict | None) -> int:
         if given:
             raise UsageError(f"{', '.join(given)}: scan options, which apply when the input is RGB-D frames "
                              f"(a folder or .zip)")
-        mesh = kinetre.load_mesh(args.mesh)
+        if args.cache:
+            from ..preprocessed import MeshCache
+            kept = MeshCache.of_file(args.mesh)
+        mesh = kept.load_mesh() if kept is not None else kinetre.load_mesh(args.mesh)
     take = take.slice(frames.start or 0, frames.stop)
     fps = args.fps if args.fps is not None else min(take.fps, 30.0)
     take = resample(take, fps)
@@ -160,7 +168,7 @@ def _animate(args, stats: dict | None) -> int:
     with _bar(3, "rigging", args.quiet, lines) as rigging, _bar(len(take), "solving", args.quiet, lines) as solving:
         rigging.unit = "step"
         result = animate(mesh, take, settings, on_frame=lambda i: solving.update(1),
-                         on_step=lambda name: rigging.update(1))
+                         on_step=lambda name: rigging.update(1), kept=kept)
     stats.update(result.seconds)
     watch.restart()
     placement, rig = result.placement, result.rig
