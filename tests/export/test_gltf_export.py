@@ -2,6 +2,8 @@
 Kinetre's own deformation within 1 % of the bounding-box diagonal at every frame."""
 from __future__ import annotations
 
+import itertools
+
 import numpy as np
 import pytest
 import trimesh
@@ -9,7 +11,9 @@ from export.takes import bend_poses, reference_skin, synthetic_graph, validate_g
 from export.gltf_player import GltfPlayer
 from kinetre.deform.pose import GraphPose
 from kinetre.errors import ExportError
-from kinetre.export.gltf import polar_error_bound, polar_rotations, skin_weights, stretch_factors, write_gltf
+from kinetre.export.gltf import (polar_error_bound, polar_rotations, proper_quaternions, skin_weights, stretch_factors,
+                                 write_gltf)
+from kinetre.rotation import matrix_quaternions
 from kinetre.mesh.mesh import Mesh
 from PIL import Image
 
@@ -150,6 +154,63 @@ def test_vertex_colours_without_uvs(tmp_path, capsule_take):
     player = GltfPlayer(out)
     c = player.accessor(player.primitive.attributes.COLOR_0)
     np.testing.assert_allclose(c[0, :3], [0, 128 / 255, 1.0], atol=1e-6)
+
+
+def _numpy_stretch_factors(rotations):
+    """`stretch_factors` as numpy products frame by frame: the reference the kernel must match bit for bit."""
+    from kinetre.svd3 import det3, svd3
+    u, s, w = svd3(rotations)
+    du, dw = np.sign(det3(u)), np.sign(det3(w))
+    du[du == 0], dw[dw == 0] = 1.0, 1.0
+    u[..., :, 2] *= du[..., None]
+    w[..., 2, :] *= dw[..., None]
+    s[..., 2] *= du * dw
+    signed = []
+    for order in itertools.permutations(range(3)):  # in the library's order: it breaks ties by the first
+        for signs in itertools.product((1.0, -1.0), repeat=3):
+            m = np.zeros((3, 3))
+            m[list(order), range(3)] = signs
+            signed.append(m)
+    cube = np.array([m for m in signed if np.linalg.det(m) > 0])  # the 24 rotations among them
+    for k in range(1, rotations.shape[0]):
+        near = u[k].transpose(0, 2, 1) @ u[k - 1] + w[k] @ w[k - 1].transpose(0, 2, 1)
+        m = cube[np.argmax(near.reshape(-1, 9) @ cube.reshape(24, 9).T, axis=1)]
+        u[k] = u[k] @ m
+        w[k] = m.transpose(0, 2, 1) @ w[k]
+        s[k] = np.einsum("nji,nj->ni", m * m, s[k])
+    return u, s, w
+
+
+def test_stretch_factors_are_numpys_frame_by_frame_products_bit_for_bit():
+    from scipy.spatial.transform import Rotation
+    rng = np.random.default_rng(7)
+    r = Rotation.random(30 * 40, random_state=8).as_matrix().reshape(30, 40, 3, 3)
+    rotations = r * rng.uniform(0.5, 1.5, (30, 40, 1, 3))
+    rotations[:, :4] = np.eye(3)                 # nodes that never move: exact zeros, tied closeness
+    rotations[:, 4:7] = np.diag([2.0, 2.0, 1.0])  # repeated singular values
+    rotations[3:6, 7] = 0.0                      # a collapsed node
+    rotations[:, 8] *= -1.0                      # reflections
+    for got, want in zip(stretch_factors(rotations), _numpy_stretch_factors(rotations)):
+        assert np.array_equal(got, want) and np.array_equal(np.signbit(got), np.signbit(want))
+
+
+def test_quaternions_are_scipys_bit_for_bit():
+    # random rotations, the axis-aligned half turns (each of Shepperd's four cases), the polar and stretch
+    # factors of a real bend; then matrices that are not rotations, which scipy itself converts
+    from scipy.spatial.transform import Rotation
+    turns = [np.eye(3), np.diag([1.0, -1, -1]), np.diag([-1.0, 1, -1]), np.diag([-1.0, -1, 1]),
+             np.array([[0.0, -1, 0], [1, 0, 0], [0, 0, 1]])]
+    rotations = np.concatenate([Rotation.random(20000, random_state=3).as_matrix(), turns])
+    r = Rotation.random(600, random_state=4).as_matrix().reshape(20, 30, 3, 3)
+    stretched = r * np.random.default_rng(5).uniform(0.7, 1.4, (20, 30, 1, 3))
+    u, _, w = stretch_factors(stretched)
+    for m in (rotations, polar_rotations(stretched), u, w):
+        got = proper_quaternions(m)
+        assert got.shape == m.shape[:-2] + (4,) and np.array_equal(got, matrix_quaternions(m))
+    for m in (rotations[:50] * 1.001, rotations[:50] + 1e-9):  # scipy re-orthogonalises these first
+        assert np.array_equal(proper_quaternions(m), matrix_quaternions(m))
+    with pytest.raises(ValueError):  # a reflection: scipy's own refusal
+        proper_quaternions(np.diag([1.0, 1, -1])[None])
 
 
 def test_polar_rotation_of_a_stretched_rotation():

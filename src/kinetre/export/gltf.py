@@ -127,7 +127,7 @@ def save_gltf(path: Path, doc: gl.GLTF2, blob: bytes, generator: str, binary: bo
 def _document_json(doc: gl.GLTF2) -> bytes:
     """The glTF JSON of a pygltflib document: its fields as plain values, None and empty ones left out (as
     pygltflib writes them)."""
-    return json.dumps(gl.delete_empty_keys(_plain(doc)), separators=(",", ":"), allow_nan=False,
+    return json.dumps(_plain(doc, True), separators=(",", ":"), allow_nan=False,
                       default=_json_scalar).encode("utf-8")
 
 
@@ -135,23 +135,33 @@ _FIELDS: dict[type, tuple[str, ...]] = {}
 _LEAVES = (int, float, str, bool, type(None))
 
 
-def _plain(value):
-    """pygltflib dataclasses (and their Attributes) → dicts and lists, without copying leaf values."""
+def _plain(value, prune: bool):
+    """pygltflib dataclasses (and their Attributes) → dicts and lists, without copying leaf values, in one pass
+    with what `pygltflib.delete_empty_keys` then does: where `prune`, a dict leaves out the keys whose value
+    is None or empty, and so do the dicts below it, except inside "extensions" and in lists of lists."""
     kind = type(value)
     if kind in _LEAVES:
         return value
-    if kind is gl.Attributes:
-        return dict(value.__dict__)
     if kind in (list, tuple):
-        return [_plain(v) for v in value]
-    if kind is dict:
-        return {k: _plain(v) for k, v in value.items()}
-    names = _FIELDS.get(kind)
-    if names is None:
-        if not dataclasses.is_dataclass(value):
-            return value
-        names = _FIELDS.setdefault(kind, tuple(f.name for f in dataclasses.fields(value)))
-    return {name: _plain(getattr(value, name)) for name in names}
+        return [_plain(v, prune and type(v) not in (list, tuple)) for v in value]
+    if kind is gl.Attributes or kind is dict:
+        items = (value.__dict__ if kind is gl.Attributes else value).items()
+    else:
+        names = _FIELDS.get(kind)
+        if names is None:
+            if not dataclasses.is_dataclass(value):
+                return value
+            names = _FIELDS.setdefault(kind, tuple(f.name for f in dataclasses.fields(value)))
+        items = ((name, getattr(value, name)) for name in names)
+    if not prune:
+        return {k: _plain(v, False) for k, v in items}
+    out = {}
+    for k, v in items:
+        v = _plain(v, k != "extensions")
+        if v is None or (hasattr(v, "__iter__") and len(v) == 0):
+            continue
+        out[k] = v
+    return out
 
 
 def _json_scalar(value):
@@ -194,12 +204,74 @@ def rotation_quaternions(rotations: np.ndarray) -> np.ndarray:
     Consecutive keys of one joint are kept in the same hemisphere (q and -q are the same rotation), so a
     player's slerp between keys never takes the long way round.
     """
-    q = matrix_quaternions(rotations)
+    q = proper_quaternions(rotations)
     f = rotations.shape[0]
     for k in range(1, f):
         flip = np.einsum("nd,nd->n", q[k], q[k - 1]) < 0
         q[k, flip] *= -1.0
     return q.astype(np.float32)
+
+
+def proper_quaternions(rotations: np.ndarray) -> np.ndarray:
+    """`rotation.matrix_quaternions` (scipy's `Rotation.from_matrix(...).as_quat()`), bit for bit, by one kernel
+    pass when every matrix is a rotation to within rounding, as the polar and SVD factors of a take are.
+
+    scipy first tests every matrix (a positive determinant, M Mᵀ within 1e-12 of the identity), re-orthogonalises
+    those that fail, then converts each with Shepperd's method. The kernel converts with the same arithmetic in
+    the same order, so where its own, stricter test passes for all (off-diagonal |M Mᵀ| ≤ 1e-13, diagonal within
+    1e-6 of 1, determinant above 1/2: scipy's test passes too, whatever the rounding of M Mᵀ) the quaternions are
+    scipy's; any other input goes to scipy. For a long take of many joints the test and the object-per-call
+    conversion were most of scipy's time.
+    """
+    r = np.ascontiguousarray(rotations, dtype=np.float64)
+    flat = r.reshape(-1, 3, 3)
+    out = np.empty((len(flat), 4))
+    if not _shepperd(flat, out):
+        return matrix_quaternions(r)
+    return out.reshape(r.shape[:-2] + (4,))
+
+
+@njit(cache=True)
+def _shepperd(m, q):
+    """scipy's `_from_matrix_orthogonal` (Shepperd's method, then the quaternion divided by its norm) for rotation
+    matrices `m` (n, 3, 3) into `q` (n, 4); False, with `q` unfinished, when a matrix is not a rotation to within
+    the margins of `proper_quaternions`."""
+    for n in range(m.shape[0]):
+        a = m[n]
+        det = (a[0, 0] * (a[1, 1] * a[2, 2] - a[1, 2] * a[2, 1]) - a[0, 1] * (a[1, 0] * a[2, 2] - a[1, 2] * a[2, 0])
+               + a[0, 2] * (a[1, 0] * a[2, 1] - a[1, 1] * a[2, 0]))
+        if not det > 0.5:
+            return False
+        for i in range(3):
+            for j in range(3):
+                g = a[i, 0] * a[j, 0] + a[i, 1] * a[j, 1] + a[i, 2] * a[j, 2]
+                if not (abs(g - 1.0) <= 1e-6 if i == j else abs(g) <= 1e-13):
+                    return False
+        trace = a[0, 0] + a[1, 1] + a[2, 2]
+        choice, best = 0, a[0, 0]  # the first largest of the diagonal and the trace
+        if a[1, 1] > best:
+            choice, best = 1, a[1, 1]
+        if a[2, 2] > best:
+            choice, best = 2, a[2, 2]
+        if trace > best:
+            choice = 3
+        if choice != 3:
+            i = choice
+            j = (i + 1) % 3
+            k = (j + 1) % 3
+            q[n, i] = 1 - trace + 2 * a[i, i]
+            q[n, j] = a[j, i] + a[i, j]
+            q[n, k] = a[k, i] + a[i, k]
+            q[n, 3] = a[k, j] - a[j, k]
+        else:
+            q[n, 0] = a[2, 1] - a[1, 2]
+            q[n, 1] = a[0, 2] - a[2, 0]
+            q[n, 2] = a[1, 0] - a[0, 1]
+            q[n, 3] = 1 + trace
+        norm = np.sqrt(q[n, 0] * q[n, 0] + q[n, 1] * q[n, 1] + q[n, 2] * q[n, 2] + q[n, 3] * q[n, 3])
+        for c in range(4):
+            q[n, c] /= norm
+    return True
 
 
 def _check_take(path, mesh, graph, poses, fps):
@@ -432,16 +504,44 @@ def stretch_factors(rotations: np.ndarray, svd=None) -> tuple[np.ndarray, np.nda
     u[..., :, 2] *= du[..., None]
     w[..., 2, :] *= dw[..., None]
     s[..., 2] *= du * dw
-    cube = _proper_signed_permutations()                                   # (24, 3, 3)
-    flat = cube.reshape(24, 9)
-    for k in range(1, rotations.shape[0]):
-        # closeness <U' , U M> + <W', M^T W> = <U^T U' + W W'^T, M> (Frobenius), for all 24 M at once
-        near = u[k].transpose(0, 2, 1) @ u[k - 1] + w[k] @ w[k - 1].transpose(0, 2, 1)
-        m = cube[np.argmax(near.reshape(-1, 9) @ flat.T, axis=1)]           # (N, 3, 3)
-        u[k] = u[k] @ m
-        w[k] = m.transpose(0, 2, 1) @ w[k]
-        s[k] = np.einsum("nji,nj->ni", m * m, s[k])                         # diag(M^T diag(s) M)
+    u, s, w = (np.ascontiguousarray(x, dtype=np.float64) for x in (u, s, w))
+    _follow_previous(u, s, w, _proper_signed_permutations())
     return u, s, w
+
+
+@njit(cache=True)
+def _follow_previous(u, s, w, cube):
+    """`stretch_factors`' frame-to-frame choice, in place: for k = 1, 2, ... each node's U, s, W of frame k
+    taken through the signed permutation M of `cube` (24, 3, 3) nearest to frame k - 1's as already taken.
+
+    Closeness <U', U M> + <W', Mᵀ W> = <Uᵀ U' + W W'ᵀ, M> (Frobenius), the first largest of the 24. A product
+    by a signed permutation picks one entry per sum and adds exact zeros, so U M, Mᵀ W and diag(Mᵀ diag(s) M)
+    here are numpy's matrix products to the bit, signed zeros included (a sum of zeros is -0 only when every
+    term is, in any order)."""
+    near = np.empty((3, 3))
+    for k in range(1, u.shape[0]):
+        for n in range(u.shape[1]):
+            for a in range(3):
+                for b in range(3):
+                    near[a, b] = (u[k, n, 0, a] * u[k - 1, n, 0, b] + u[k, n, 1, a] * u[k - 1, n, 1, b]
+                                  + u[k, n, 2, a] * u[k - 1, n, 2, b]) + \
+                                 (w[k, n, a, 0] * w[k - 1, n, b, 0] + w[k, n, a, 1] * w[k - 1, n, b, 1]
+                                  + w[k, n, a, 2] * w[k - 1, n, b, 2])
+            best, pick = -np.inf, 0
+            for c in range(cube.shape[0]):
+                score = 0.0
+                for a in range(3):
+                    for b in range(3):
+                        score += near[a, b] * cube[c, a, b]
+                if score > best:
+                    best, pick = score, c
+            m = cube[pick]
+            uk, wk, sk = u[k, n].copy(), w[k, n].copy(), s[k, n].copy()
+            for a in range(3):
+                for b in range(3):
+                    u[k, n, a, b] = uk[a, 0] * m[0, b] + uk[a, 1] * m[1, b] + uk[a, 2] * m[2, b]
+                    w[k, n, a, b] = m[0, a] * wk[0, b] + m[1, a] * wk[1, b] + m[2, a] * wk[2, b]
+                s[k, n, a] = m[0, a] * m[0, a] * sk[0] + m[1, a] * m[1, a] * sk[1] + m[2, a] * m[2, a] * sk[2]
 
 
 def _proper_signed_permutations() -> np.ndarray:
