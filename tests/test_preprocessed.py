@@ -2,6 +2,7 @@
 the settings, missed when either changes, and the output of `kinetre animate` the same with it or without."""
 from __future__ import annotations
 
+import dataclasses
 import os
 import shutil
 
@@ -67,6 +68,18 @@ def test_a_kept_graph_is_found_only_for_its_settings(teapot, tmp_path):
     assert MeshCache.of_file(other, folder).graph("y", 64, 0) is None
 
 
+def test_a_kept_up_axis_is_found_for_its_file_kind_only(teapot, tmp_path):
+    from kinetre.mesh.upright import find_upright
+    kept = MeshCache.of_file(teapot, tmp_path)
+    mesh = kept.load_mesh()
+    found = find_upright(mesh, mesh.source)
+    assert kept.upright(str(teapot)) is None
+    topples = dataclasses.replace(found, scores={**found.scores, "-y": -np.inf})  # -inf: a side it topples on
+    kept.keep_upright(str(teapot), topples)
+    assert MeshCache.of_file(teapot, tmp_path).upright(str(teapot)) == topples
+    assert kept.upright(str(teapot.with_suffix(".glb"))) is None  # glTF is +Y up by its specification
+
+
 def test_a_damaged_entry_is_a_miss_and_is_written_again(teapot, tmp_path):
     folder = tmp_path / "cache"
     MeshCache.of_file(teapot, folder).load_mesh()
@@ -115,5 +128,5 @@ def test_animate_writes_the_same_file_from_kept_preprocessing(teapot, tmp_path, 
         outputs.append(out.read_bytes())
     capsys.readouterr()
     entries = sorted(p.name.split(".", 1)[1] for p in (tmp_path / "user-cache" / "meshes").iterdir())
-    assert entries == ["graph.npz", "mesh.npz"]
+    assert entries == ["graph.npz", "mesh.npz", "upright.npz"]
     assert outputs[0] == outputs[1] == outputs[2]

@@ -124,8 +124,8 @@ def animate(mesh: Mesh, take: Take, settings: AnimateSettings = AnimateSettings(
     settings : AnimateSettings
     on_frame : called with each frame's index once it is solved (progress)
     on_step : called with "graph", "placement", "attach" as each rigging step ends (progress)
-    kept : the mesh file's kept preprocessing (`kinetre.preprocessed`): its graph with weights for these
-        settings is taken from there when kept, else built and kept there
+    kept : the mesh file's kept preprocessing (`kinetre.preprocessed`): the up axis its shape stands on and
+        its graph with weights for these settings are taken from there when kept, else found and kept there
 
     Raises
     ------
@@ -147,7 +147,7 @@ def animate(mesh: Mesh, take: Take, settings: AnimateSettings = AnimateSettings(
     watch = Stopwatch()
     seconds, lap = watch.seconds, watch.lap
 
-    upright = _upright(mesh, take, s)
+    upright = _upright(mesh, take, s, kept)
     mesh = turned(mesh, upright.up)
     standing = _standing_source(take, mesh, s)
     graph = kept.graph(upright.up, s.nodes, s.seed) if kept is not None and s.solve else None
@@ -211,16 +211,21 @@ def animate(mesh: Mesh, take: Take, settings: AnimateSettings = AnimateSettings(
     return Animation(mesh_out, graph_out, tuple(poses), out_take, placement, rig, shape, notes, seconds, upright)
 
 
-def _upright(mesh: Mesh, take: Take, s: AnimateSettings) -> Upright:
-    """The up axis `mesh` is driven with: the one asked, else found from its file (`mesh.source`) and shape.
-    A +Z up found from the shape gives way when the take's own skeleton (a take is +Y up) stands inside the
-    mesh as stored: a figure on rounded feet may topple by the floor test, yet it stands."""
+def _upright(mesh: Mesh, take: Take, s: AnimateSettings, kept: MeshCache | None = None) -> Upright:
+    """The up axis `mesh` is driven with: the one asked, else found from its file (`mesh.source`) and shape
+    (or kept from an earlier run in `kept`). A +Z up found from the shape gives way when the take's own
+    skeleton (a take is +Y up) stands inside the mesh as stored: a figure on rounded feet may topple by the
+    floor test, yet it stands."""
     from .mesh.upright import Upright, axis_name, find_upright
     from .motion.in_place import stands_inside
 
     if s.up != "auto":
         return Upright(s.up, {}, f"{axis_name(s.up)} up, as asked")
-    found = find_upright(mesh, mesh.source)
+    found = kept.upright(mesh.source) if kept is not None else None
+    if found is None:
+        found = find_upright(mesh, mesh.source)
+        if kept is not None:
+            kept.keep_upright(mesh.source, found)
     if found.up != "y" and stands_inside(take.native if take.native is not None else take, mesh, s.bind_frame):
         return Upright("y", found.scores, "+Y up: the motion's skeleton stands inside it as stored")
     return found

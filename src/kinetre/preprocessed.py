@@ -1,5 +1,6 @@
-"""A mesh file's preprocessing kept between runs: the cleaned mesh and its deformation graph with skinning
-weights, found again by what the file holds (not its name or date) and the settings that made them.
+"""A mesh file's preprocessing kept between runs: the cleaned mesh, the up axis its shape stands on and its
+deformation graph with skinning weights, found again by what the file holds (not its name or date) and the
+settings that made them.
 
 Loading and cleaning a mesh, sampling its graph and weighing every vertex cost more than the whole solve of
 a short clip on a large mesh, and give the same arrays every time for the same file: `kinetre animate` keeps
@@ -9,7 +10,8 @@ kernels. An entry's name is a hash of
 * the file's bytes,
 * the code that made it: the sources of Kinetre's `mesh` and `graph` stages and of this module, and the
   versions of Python, numpy, numba and trimesh (a new version recomputes rather than trusting old arrays),
-* for a graph, the settings: up axis, node count, seed.
+* for a graph, the settings: up axis, node count, seed; for the up axis found from the shape, the file's
+  extension (glTF is +Y up by its specification).
 
 Entries are numpy archives (no pickles), written to a temporary file and renamed, so a reader never sees
 half an entry; an entry that cannot be read back whole is a miss and is written again. The folder is kept
@@ -50,7 +52,8 @@ class MeshCache:
     """The kept preprocessing of one mesh file (see the module's docstring).
 
     `MeshCache.of_file(path)` hashes the file; `load_mesh()` returns its cleaned mesh (kept or loaded and
-    kept); `graph(...)` a kept graph or None, and `keep_graph(...)` keeps one.
+    kept); `graph(...)` and `upright(...)` a kept graph or up axis or None, `keep_graph` and `keep_upright`
+    keep one.
     """
 
     def __init__(self, path: str, content: str, folder: Path | None = None):
@@ -94,6 +97,21 @@ class MeshCache:
         """Keep `graph` (with its skinning weights) as the graph of the mesh stood `up` for these settings."""
         arrays = {name: np.asarray(getattr(graph, name)) for name in _GRAPH if getattr(graph, name) is not None}
         self._write(self._entry("graph", up, nodes, seed), arrays)
+
+    def upright(self, source: str):
+        """The kept `mesh.upright.Upright` found for the mesh read from a file named like `source` (its
+        extension can say the up axis), or None."""
+        arrays = self._read(self._entry("upright", _extensions(source)), ("upright",), set())
+        if arrays is None:
+            return None
+        from .mesh.upright import Upright
+        up, scores, reason = json.loads(str(arrays["upright"]))
+        return Upright(up, scores, reason)
+
+    def keep_upright(self, source: str, upright) -> None:
+        """Keep `upright`, found for the mesh read from a file named like `source`."""
+        text = json.dumps([upright.up, upright.scores, upright.reason])  # -inf scores as -Infinity
+        self._write(self._entry("upright", _extensions(source)), {"upright": np.array(text)})
 
     def _entry(self, kind: str, *settings) -> Path:
         return self.folder / f"{_digest(self._stem, kind, *map(str, settings))}.{kind}.npz"
@@ -182,6 +200,11 @@ def _versions(names) -> dict[str, str]:
                 if key in wanted and wanted[key] not in found:
                     found[wanted[key]] = version
     return found
+
+
+def _extensions(path: str) -> str:
+    """".ply", ".ply.gz", ".glb": the lower-cased extensions of a file name."""
+    return "".join(Path(path).suffixes).lower()
 
 
 def _digest(*parts: str) -> str:
