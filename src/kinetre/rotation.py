@@ -62,15 +62,72 @@ def quaternion_matrices(q: np.ndarray) -> np.ndarray:
 
 
 def matrix_quaternions(rotations: np.ndarray) -> np.ndarray:
-    """(..., 4) unit quaternions (x, y, z, w) of (..., 3, 3) rotation matrices (scipy's, w >= 0).
+    """(..., 4) unit quaternions (x, y, z, w) of (..., 3, 3) rotation matrices: scipy's
+    `Rotation.from_matrix(...).as_quat()`, bit for bit, by one kernel pass when every matrix is a rotation to
+    within rounding (as the polar and SVD factors of a take, or a live frame's bones, are).
+
+    scipy first tests every matrix (a positive determinant, M Mᵀ within 1e-12 of the identity), re-orthogonalises
+    those that fail, then converts each with Shepperd's method. The kernel converts with the same arithmetic in
+    the same order, so where its own, stricter test passes for all (off-diagonal |M Mᵀ| ≤ 1e-13, diagonal within
+    1e-6 of 1, determinant above 1/2: scipy's test passes too, whatever the rounding of M Mᵀ) the quaternions are
+    scipy's; any other input goes to scipy. For many matrices the test and the object-per-call conversion were
+    most of scipy's time.
 
     >>> matrix_quaternions(np.eye(3))
     array([0., 0., 0., 1.])
     """
-    from scipy.spatial.transform import Rotation
+    r = np.ascontiguousarray(rotations, dtype=np.float64)
+    flat = r.reshape(-1, 3, 3)
+    out = np.empty((len(flat), 4))
+    if not _shepperd(flat, out):
+        from scipy.spatial.transform import Rotation
+        out = Rotation.from_matrix(flat).as_quat()
+    return out.reshape(r.shape[:-2] + (4,))
 
-    r = np.asarray(rotations, dtype=np.float64)
-    return Rotation.from_matrix(r.reshape(-1, 3, 3)).as_quat().reshape(r.shape[:-2] + (4,))
+
+@njit(cache=True)
+def _shepperd(m, q):
+    """scipy's `_from_matrix_orthogonal` (Shepperd's method, then the quaternion divided by its norm) for rotation
+    matrices `m` (n, 3, 3) into `q` (n, 4); False, with `q` unfinished, when a matrix is not a rotation to within
+    the margins of `matrix_quaternions`."""
+    for n in range(m.shape[0]):
+        a = m[n]
+        det = (a[0, 0] * (a[1, 1] * a[2, 2] - a[1, 2] * a[2, 1]) - a[0, 1] * (a[1, 0] * a[2, 2] - a[1, 2] * a[2, 0])
+               + a[0, 2] * (a[1, 0] * a[2, 1] - a[1, 1] * a[2, 0]))
+        if not det > 0.5:
+            return False
+        for i in range(3):
+            for j in range(3):
+                g = a[i, 0] * a[j, 0] + a[i, 1] * a[j, 1] + a[i, 2] * a[j, 2]
+                if not (abs(g - 1.0) <= 1e-6 if i == j else abs(g) <= 1e-13):
+                    return False
+        trace = a[0, 0] + a[1, 1] + a[2, 2]
+        choice, best = 0, a[0, 0]  # the first largest of the diagonal and the trace
+        if a[1, 1] > best:
+            choice, best = 1, a[1, 1]
+        if a[2, 2] > best:
+            choice, best = 2, a[2, 2]
+        if trace > best:
+            choice = 3
+        if choice != 3:
+            i = choice
+            j = (i + 1) % 3
+            k = (j + 1) % 3
+            q[n, i] = 1 - trace + 2 * a[i, i]
+            q[n, j] = a[j, i] + a[i, j]
+            q[n, k] = a[k, i] + a[i, k]
+            q[n, 3] = a[k, j] - a[j, k]
+        else:
+            q[n, 0] = a[2, 1] - a[1, 2]
+            q[n, 1] = a[0, 2] - a[2, 0]
+            q[n, 2] = a[1, 0] - a[0, 1]
+            q[n, 3] = 1 + trace
+        norm = np.sqrt(q[n, 0] * q[n, 0] + q[n, 1] * q[n, 1] + q[n, 2] * q[n, 2] + q[n, 3] * q[n, 3])
+        for c in range(4):
+            q[n, c] /= norm
+    return True
+
+
 
 
 def slerp(a: np.ndarray, b: np.ndarray, u: np.ndarray) -> np.ndarray:
