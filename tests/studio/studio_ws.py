@@ -96,6 +96,22 @@ class StudioClient:
             except asyncio.TimeoutError:
                 pass
 
+    async def perform(self, frames, first_seq: int, until, watcher: "StudioClient | None" = None,
+                      timeout: float = 120.0, fps: float = 30.0) -> None:
+        """Send `frames` (cycling) as a camera would, one every 1/fps s, until `until(watcher)` holds: the scene
+        merges frames that arrive faster than it solves (the newest wins), so a burst of frames can yield a
+        single solve, and a test waiting for several solves must keep performing while it waits."""
+        watcher = watcher or self
+        deadline = time.monotonic() + timeout
+        k = 0
+        while not until(watcher):
+            if time.monotonic() > deadline:
+                raise TimeoutError("condition not met while performing; last messages: "
+                                   + json.dumps(watcher.messages[-3:])[:800])
+            await self.send(frame_message(first_seq + k, frames[k % len(frames)]))
+            k += 1
+            await asyncio.sleep(1.0 / fps)
+
     def me(self) -> dict | None:
         for u in (self.state or {}).get("users", []):
             if u["client"] == self.client:
