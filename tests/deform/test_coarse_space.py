@@ -90,7 +90,7 @@ def test_coarse_correction_is_the_galerkin_solve(armadillo_system):
     coarse_space.coarse_add(gfac, split.region, split.offsets, r, z)
     want = p @ np.linalg.solve(galerkin, p.T @ r)
     assert np.allclose(z, want, rtol=1e-9, atol=1e-9 * np.abs(want).max())
-    node_fac = np.zeros((n, 12, 12))
+    node_fac = preconditioner.node_factor_buffer(n)
     preconditioner.node_factors(k_blocks, rot, rig, ne.bridges, damp, node_fac)
     coarse = (gfac, split.region, split.offsets)
     for kind in (preconditioner.HALF_CYCLE, preconditioner.TWO_LEVEL):

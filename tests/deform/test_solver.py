@@ -247,7 +247,7 @@ def test_coordinate_solve_inverts_the_shifted_k(armadillo, backend):
     assert np.allclose(z, out)
     assert np.abs(residual - (r - h_out)).max() < 1e-8 * np.abs(r).max()
     # CG run long enough solves H x = r, with H p taken from the two-level preconditioner's by-products
-    node_fac = np.zeros((n, 12, 12))
+    node_fac = preconditioner.node_factor_buffer(n)
     preconditioner.node_factors(k_blocks, rot, rig, ne.bridges, damp, node_fac)
     no_coarse = (np.zeros((0, 0)), np.zeros(n, np.int64), np.zeros((n, 3)))
     for kind in (preconditioner.TWO_LEVEL, preconditioner.HALF_CYCLE):
@@ -297,7 +297,7 @@ def test_node_blocks_invert_the_diagonal_blocks_of_the_system(armadillo):
     rot, rig = np.zeros((n, 9, 9)), np.zeros((len(bridges), 18, 18))
     hessian.local_blocks(x[:, :9].reshape(-1, 3, 3), ne.bridges, 1.0, 1.0, rot, rig)
     damp = rng.uniform(0, 0.1, 12 * n)
-    fac = np.zeros((n, 12, 12))
+    fac = preconditioner.node_factor_buffer(n)
     preconditioner.node_factors(k_blocks, rot, rig, ne.bridges, damp, fac)
     # the diagonal blocks of H, read off by multiplying H with unit vectors node by node
     blocks = np.zeros((n, 12, 12))

@@ -22,7 +22,7 @@ from .fast.coordinate_split import CoordinateSplit
 from .fast.energy import energy_gradient
 from .fast.gauss_newton import pcg_frame
 from .fast.live_stop import NO_FLAG, Yield
-from .fast.preconditioner import HALF_CYCLE, TWO_LEVEL
+from .fast.preconditioner import HALF_CYCLE, TWO_LEVEL, node_factor_buffer
 from .normal_equations import NormalEquations
 from .rigid_start import rigid_start
 
@@ -129,7 +129,7 @@ class GaussNewton:
         nodes = system.n // 12
         self._rot = np.zeros((nodes, 9, 9))
         self._rig = np.zeros((len(system.bridges), 18, 18))
-        self._node_fac = np.zeros((nodes, 12, 12))
+        self._node_fac = node_factor_buffer(nodes)
         count = 0 if self.split is None or not settings.coarse_regions else int(self.split.region.max()) + 1
         region = self.split.region if self.split is not None else np.zeros(nodes, np.int64)
         offsets = self.split.offsets if self.split is not None else np.zeros((nodes, 3))

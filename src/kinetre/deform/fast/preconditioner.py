@@ -29,76 +29,142 @@ from .hessian import block_row, hessian_times, local_times
 TWO_LEVEL, ADDITIVE, HALF_CYCLE = 1, 2, 3
 
 
-@njit(cache=True)
+# The node blocks' factors are stored lane-major: nodes in chunks of `NODE_LANES`, each entry of a chunk a row of
+# NODE_LANES numbers, one per node. Every loop over a chunk's lanes is then one the compiler turns into vector
+# instructions (nodes are independent), where a node at a time is a chain of dependent square roots and divisions.
+NODE_LANES = 64
+# entries per node: S's lower triangle (45, row by row, reciprocals on the diagonal), 1 / D (3), K's t column (3)
+_TRIANGLE, _INV_D, _K_T = 0, 45, 48
+NODE_ENTRIES = 51
+
+
+def node_factor_buffer(nodes: int) -> np.ndarray:
+    """A buffer for `node_factors` of `nodes` nodes: (chunks, NODE_ENTRIES, NODE_LANES)."""
+    return np.zeros(((nodes + NODE_LANES - 1) // NODE_LANES, NODE_ENTRIES, NODE_LANES))
+
+
+@njit(cache=True, error_model="numpy")
 def node_factors(k_blocks, rot, rig, bridges, damp, out):
-    """Factor H's diagonal 12×12 node blocks (N, 4, 4 `k_blocks`: K's diagonal blocks) into `out` (N, 12, 12).
+    """Factor H's diagonal 12×12 node blocks (N, 4, 4 `k_blocks`: K's diagonal blocks) into `out`
+    (`node_factor_buffer`).
 
     A node's t unknowns meet only K (diagonal per coordinate: k_tt I₃ + damping) and, through K, its
-    own R, so they are eliminated first: out[:9, :9] holds the Cholesky factor of the 9×9 Schur
-    complement S = A − C D⁻¹ Cᵀ (reciprocal diagonal), out[9 + a, 9 + a] = 1 / D_a and out[9, b] = K[b, 3].
-    Only S's lower triangle is assembled: the factorisation reads no more.
+    own R, so they are eliminated first: the triangle holds the Cholesky factor of the 9×9 Schur
+    complement S = A − C D⁻¹ Cᵀ (reciprocal diagonal), then 1 / D_a and K[b, 3]. Only S's lower triangle
+    is assembled: the factorisation reads no more. The lanes past N are identity blocks. (numpy's error model:
+    Python's would test every division for zero, which keeps the loops from being vectorised.)
     """
     n = rot.shape[0]
-    for j in range(n):
-        a = out[j]
+    lanes = out.shape[2]
+    s = np.empty(lanes)
+    for ch in range(out.shape[0]):
+        a = out[ch]
+        base = ch * lanes
+        used = min(lanes, n - base)
         for u in range(9):
             for v in range(u + 1):
-                a[u, v] = rot[j, u, v]
+                t = u * (u + 1) // 2 + v
+                for ln in range(used):
+                    a[t, ln] = rot[base + ln, u, v]
+                for ln in range(used, lanes):
+                    a[t, ln] = 1.0 if u == v else 0.0
     for e in range(bridges.shape[0]):
-        for s in range(2):
-            a = out[bridges[e, s]]
+        for side in range(2):
+            j = bridges[e, side]
+            a = out[j // lanes]
+            ln = j % lanes
             for u in range(9):
                 for v in range(u + 1):
-                    a[u, v] += rig[e, 9 * s + u, 9 * s + v]
-    for j in range(n):
-        a = out[j]
-        kb = k_blocks[j]
-        o = 12 * j
+                    a[u * (u + 1) // 2 + v, ln] += rig[e, 9 * side + u, 9 * side + v]
+    for ch in range(out.shape[0]):
+        a = out[ch]
+        base = ch * lanes
+        used = min(lanes, n - base)
         for c in range(3):
-            a[9 + c, 9 + c] = 1.0 / (kb[3, 3] + damp[o + 9 + c])
-            a[9, c] = kb[c, 3]
+            for ln in range(used):
+                a[_INV_D + c, ln] = 1.0 / (k_blocks[base + ln, 3, 3] + damp[12 * (base + ln) + 9 + c])
+                a[_K_T + c, ln] = k_blocks[base + ln, c, 3]
+            for ln in range(used, lanes):
+                a[_INV_D + c, ln] = 1.0
+                a[_K_T + c, ln] = 0.0
         for b in range(3):
             for bb in range(b + 1):
-                kk = kb[b, bb]
-                kt = kb[b, 3] * kb[bb, 3]
                 for c in range(3):
-                    a[3 * b + c, 3 * bb + c] += kk - kt * a[9 + c, 9 + c]
+                    u = 3 * b + c
+                    t = u * (u + 1) // 2 + 3 * bb + c
+                    for ln in range(used):
+                        kb = k_blocks[base + ln]
+                        kt = kb[b, 3] * kb[bb, 3]
+                        a[t, ln] += kb[b, bb] - kt * a[_INV_D + c, ln]
         for u in range(9):
-            a[u, u] += damp[o + u]
+            t = u * (u + 1) // 2 + u
+            for ln in range(used):
+                a[t, ln] += damp[12 * (base + ln) + u]
         for c in range(9):
-            d = a[c, c]
+            row = c * (c + 1) // 2
+            for ln in range(lanes):
+                s[ln] = a[row + c, ln]
             for k in range(c):
-                d -= a[c, k] * a[c, k]
-            d = np.sqrt(d) if d > 0.0 else 1e-150
-            a[c, c] = 1.0 / d  # reciprocals on the diagonal: the solves multiply
+                for ln in range(lanes):
+                    s[ln] -= a[row + k, ln] * a[row + k, ln]
+            for ln in range(lanes):
+                d = s[ln]
+                a[row + c, ln] = 1.0 / (np.sqrt(d) if d > 0.0 else 1e-150)  # reciprocals: the solves multiply
             for r in range(c + 1, 9):
-                s = a[r, c]
+                other = r * (r + 1) // 2
+                for ln in range(lanes):
+                    s[ln] = a[other + c, ln]
                 for k in range(c):
-                    s -= a[r, k] * a[c, k]
-                a[r, c] = s * a[c, c]
+                    for ln in range(lanes):
+                        s[ln] -= a[other + k, ln] * a[row + k, ln]
+                for ln in range(lanes):
+                    a[other + c, ln] = s[ln] * a[row + c, ln]
 
 
 @njit(cache=True)
 def node_solve(factors, r, out):
-    """out = blockdiag(node blocks)⁻¹ r with the factors of `node_factors`."""
-    z = np.empty(9)
-    for j in range(factors.shape[0]):
-        a = factors[j]
-        o = 12 * j
+    """out = blockdiag(node blocks)⁻¹ r with the factors of `node_factors`, a chunk of nodes at a time."""
+    lanes = factors.shape[2]
+    n = r.shape[0] // 12
+    y = np.empty((12, lanes))
+    z = np.empty((9, lanes))
+    s = np.empty(lanes)
+    for ch in range(factors.shape[0]):
+        a = factors[ch]
+        base = ch * lanes
+        used = min(lanes, n - base)
+        for ln in range(used):
+            for u in range(12):
+                y[u, ln] = r[12 * (base + ln) + u]
+        for ln in range(used, lanes):
+            for u in range(12):
+                y[u, ln] = 0.0
         for c in range(9):  # forward, on f − C D⁻¹ h
-            s = r[o + c] - a[9, c // 3] * r[o + 9 + c % 3] * a[9 + c % 3, 9 + c % 3]
+            row = c * (c + 1) // 2
+            for ln in range(lanes):
+                s[ln] = y[c, ln] - a[_K_T + c // 3, ln] * y[9 + c % 3, ln] * a[_INV_D + c % 3, ln]
             for k in range(c):
-                s -= a[c, k] * z[k]
-            z[c] = s * a[c, c]
+                for ln in range(lanes):
+                    s[ln] -= a[row + k, ln] * z[k, ln]
+            for ln in range(lanes):
+                z[c, ln] = s[ln] * a[row + c, ln]
         for c in range(8, -1, -1):
-            s = z[c]
+            for ln in range(lanes):
+                s[ln] = z[c, ln]
             for k in range(c + 1, 9):
-                s -= a[k, c] * z[k]
-            z[c] = s * a[c, c]
-            out[o + c] = z[c]
-        for c in range(3):  # t = D⁻¹ (h − Cᵀ u)
-            out[o + 9 + c] = (r[o + 9 + c] - a[9, 0] * z[c] - a[9, 1] * z[3 + c] - a[9, 2] * z[6 + c]) \
-                * a[9 + c, 9 + c]
+                t = k * (k + 1) // 2 + c
+                for ln in range(lanes):
+                    s[ln] -= a[t, ln] * z[k, ln]
+            t = c * (c + 1) // 2 + c
+            for ln in range(lanes):
+                z[c, ln] = s[ln] * a[t, ln]
+        for ln in range(used):
+            o = 12 * (base + ln)
+            for c in range(9):
+                out[o + c] = z[c, ln]
+            for c in range(3):  # t = D⁻¹ (h − Cᵀ u)
+                out[o + 9 + c] = (y[9 + c, ln] - a[_K_T, ln] * z[c, ln] - a[_K_T + 1, ln] * z[3 + c, ln]
+                                  - a[_K_T + 2, ln] * z[6 + c, ln]) * a[_INV_D + c, ln]
 
 
 @njit(cache=True)
