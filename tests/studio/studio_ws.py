@@ -38,9 +38,11 @@ async def possessed_client(url, walk) -> "StudioClient":
 class StudioClient:
     """Connects, remembers the newest state/transforms, and waits for conditions on them."""
 
-    def __init__(self, url: str, token: str | None = None):
-        self.url = url.replace("http://", "ws://") + "/ws" + (f"?token={token}" if token else "")
+    def __init__(self, url: str, token: str | None = None, resume: str | None = None):
+        query = "&".join(f"{k}={v}" for k, v in (("token", token), ("resume", resume)) if v)
+        self.url = url.replace("http://", "ws://") + "/ws" + (f"?{query}" if query else "")
         self.client = ""
+        self.resume = ""  # "client.token": what a reconnect passes to come back as this client
         self.state: dict | None = None
         self.transforms: tuple | None = None  # (seq, mesh_id, t_source, t_out, matrices)
         self.mesh_transforms: dict[int, tuple] = {}  # the newest transforms of each mesh, by mesh id
@@ -63,6 +65,11 @@ class StudioClient:
         self._reader.cancel()
         await self._ws.close()
 
+    async def drop(self) -> None:
+        """Lose the connection as a network would: no closing handshake."""
+        self._reader.cancel()
+        self._ws.transport.abort()
+
     async def _read(self):
         async for data in self._ws:
             now = time.time() * 1000
@@ -76,7 +83,7 @@ class StudioClient:
                 msg = json.loads(data)
                 self.messages.append(msg)
                 if msg["type"] == "welcome":
-                    self.client = msg["client"]
+                    self.client, self.resume = msg["client"], msg["resume"]
                 elif msg["type"] == "state":
                     self.state = msg
             self._changed.set()

@@ -19,7 +19,6 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
-import itertools
 import json
 import secrets
 import threading
@@ -50,6 +49,7 @@ from .player import sample_player
 from .routes import api_routes
 from .scene import Scene
 from .scene.solve_worker import SolveWorker, freeze_heap
+from .sessions import RESUME_S, Sessions
 from .viewer import Viewer
 from ..vmc.receive import check_listen
 from .vmc_in import VmcUsers
@@ -74,7 +74,8 @@ async def model_get(request: Request) -> Response:
 def create_app(mesh_path: str | None = None, nodes: int = NODES, sample_motion: bool = True, *,
                nats: str | None = None, room: str = "main", token: str | None = None,
                remote_scene: bool = False, nkey: str | None = None, vmc: tuple[str, int] | None = None,
-               vmc_listen: tuple[str, int] | None = None, clean: bool = False) -> Starlette:
+               vmc_listen: tuple[str, int] | None = None, clean: bool = False,
+               resume_s: float = RESUME_S) -> Starlette:
     """The studio as an ASGI app (tests run it under uvicorn on 127.0.0.1).
 
     With `nats` (a NATS server URL) the channels are that server's subjects for `room` (natsbus.py);
@@ -83,6 +84,7 @@ def create_app(mesh_path: str | None = None, nodes: int = NODES, sample_motion: 
     room's nkey seed file, then authenticates to NATS instead of the token. `vmc` (host, port): the avatars
     send VMC there (vmc_out.py); `vmc_listen` (host, port): VMC performers there become users (vmc_in.py).
     `clean`: users' body frames are smoothed and their feet held before the solve (kinetre.motion.cleanup).
+    `resume_s`: how long a page whose connection dropped keeps its user for its reconnect (sessions.py).
     """
     hub = NatsChannels(room) if nats else Hub()
     host: SceneHost
@@ -101,8 +103,8 @@ def create_app(mesh_path: str | None = None, nodes: int = NODES, sample_motion: 
         host = LocalScene(hub, scene, player, nodes=nodes, source=(raw, Path(path).name))
     shelf = Shelf()
     viewers: dict[str, Viewer] = {}
-    names = itertools.count(1)
     prefix = f"{secrets.token_hex(2)}-" if nats else ""  # client names unique across studios of a room
+    sessions = Sessions(host.forget, prefix, resume_s)
     framing = Framing()  # each transform block framed once for all pages
     vmc_out = VmcOut(hub, shelf, *vmc) if vmc is not None else None
     vmc_users = VmcUsers(hub, possess_command(host, hub), *vmc_listen) if vmc_listen is not None else None
@@ -130,12 +132,14 @@ def create_app(mesh_path: str | None = None, nodes: int = NODES, sample_motion: 
 
     async def ws_endpoint(ws: WebSocket) -> None:
         await ws.accept()
-        client = f"{prefix}c{next(names)}"
-        viewers[client] = viewer = Viewer(ws, client, hub, host, framing)
+        client, resume = sessions.open(ws.query_params.get("resume"))
+        viewers[client] = viewer = Viewer(ws, client, hub, host, framing, f"{client}.{resume}")
         try:
             await viewer.run()
         finally:
-            viewers.pop(client, None)
+            if viewers.get(client) is viewer:  # not taken over by the same page reconnecting
+                del viewers[client]
+            sessions.close(client, viewer.close_code)
 
     routes = [WebSocketRoute("/ws", ws_endpoint), *api_routes(host, hub, viewers.__contains__),
               *avatar_routes(shelf), *face_routes()]

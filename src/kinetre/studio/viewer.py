@@ -39,15 +39,18 @@ class ClientStats:
 class Viewer:
     """The server's end of one WebSocket (`client`: the name the server gave it)."""
 
-    def __init__(self, ws: WebSocket, client: str, hub: Channels, host: SceneHost, framing: Framing):
+    def __init__(self, ws: WebSocket, client: str, hub: Channels, host: SceneHost, framing: Framing,
+                 resume: str = ""):
         self.ws, self.client, self.hub, self.host, self.framing = ws, client, hub, host, framing
+        self.resume = resume  # the token that lets this page come back as the same client (sessions.py)
+        self.close_code: int | None = None  # how the connection ended (WebSocket close code)
         self.stats = ClientStats()
         self.sub = hub.subscribe(urgent=(TRANSFORMS, STATE, client_subject(client)))
 
     async def run(self) -> None:
-        """Greet the page, then serve it until it disconnects."""
+        """Greet the page, then serve it until it disconnects (`close_code` then says how)."""
         ws, stats, host = self.ws, self.stats, self.host
-        await ws.send_text(json.dumps({"type": "welcome", "client": self.client,
+        await ws.send_text(json.dumps({"type": "welcome", "client": self.client, "resume": self.resume,
                                        "channel": skeleton_subject(self.client)}))
         await ws.send_text(json.dumps(host.state()))
         blocks = host.transforms_blocks()  # none while a remote scene has not been heard yet
@@ -71,17 +74,17 @@ class Viewer:
             while True:
                 message = await ws.receive()
                 if message["type"] == "websocket.disconnect":
+                    self.close_code = message.get("code", 1000)
                     break
                 data = message.get("text")
                 if data is None:
                     data = message.get("bytes") or b""
                 await self.receive(data)
-        except WebSocketDisconnect:
-            pass
+        except WebSocketDisconnect as exc:
+            self.close_code = exc.code
         finally:
             sender.cancel()
             self.sub.close()
-            host.forget(self.client)
 
     async def receive(self, text: str | bytes) -> None:
         """One message from the page; a malformed one is answered with an error, never fatal."""

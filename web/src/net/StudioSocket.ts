@@ -1,5 +1,6 @@
 // One WebSocket to the studio server: sends JSON commands and skeleton frames, dispatches what comes back.
-// Reconnects after a drop; skeleton frames sent while the socket is busy are dropped (the newest wins).
+// Reconnects after a drop, as the same client (see `resume`); skeleton frames sent while the socket is
+// busy are dropped (the newest wins).
 import { decodeTransforms, type ServerMessage, type TransformBlock } from './protocol';
 
 export interface SocketHandlers {
@@ -16,11 +17,16 @@ export class StudioSocket {
   droppedFrames = 0;
   sceneLost = false; // the studio says its scene (a `kinetre scene` process) stopped answering
   refused = ''; // why the studio closed the socket for good (a room token missing or wrong)
+  // "client.token" from the welcome: after a dropped connection the page comes back as the same user,
+  // possessing what it possessed, if it returns within the server's grace period
+  private resume = '';
 
   constructor(private readonly url: string, private readonly handlers: SocketHandlers) {}
 
   connect(): void {
-    const ws = new WebSocket(this.url);
+    let url = this.url;
+    if (this.resume) url += `${url.includes('?') ? '&' : '?'}resume=${encodeURIComponent(this.resume)}`;
+    const ws = new WebSocket(url);
     ws.binaryType = 'arraybuffer';
     ws.onopen = () => this.handlers.onConnection(true);
     ws.onclose = (event: CloseEvent) => {
@@ -39,7 +45,10 @@ export class StudioSocket {
         return;
       }
       const message = JSON.parse(event.data as string) as ServerMessage;
-      if (message.type === 'welcome') this.client = message.client;
+      if (message.type === 'welcome') {
+        this.client = message.client;
+        this.resume = message.resume ?? '';
+      }
       if (message.type === 'state') this.sceneLost = Boolean(message.scene_lost);
       this.handlers.onMessage(message);
     };
@@ -68,6 +77,6 @@ export class StudioSocket {
 
   close(): void {
     this.closed = true;
-    this.ws?.close();
+    this.ws?.close(1000); // with its code: the server forgets this user at once instead of awaiting a reconnect
   }
 }

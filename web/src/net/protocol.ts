@@ -62,7 +62,7 @@ export interface SceneState {
 }
 
 export type ServerMessage =
-  | { type: 'welcome'; client: string; channel: string }
+  | { type: 'welcome'; client: string; channel: string; resume?: string }
   | SceneState
   | SkeletonMessage
   | { type: 'error'; message: string }
