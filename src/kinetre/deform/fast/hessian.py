@@ -7,6 +7,9 @@ a's 4N unknowns, so the linear terms (E_reg, E_con and E_rig's gap, Eq. 4, 5, 7)
 are dense and added on top:
 
     H = (K ⊗ I₃) + blockdiag_j(B_rot,j) + Σ_bridges B_rig,e + λ diag(H).
+
+The products are compiled with fused multiply-adds (numba's fastmath "contract" alone: no reordering, one
+rounding per multiply-add instead of two): they are most of a CG iteration's instructions.
 """
 from __future__ import annotations
 
@@ -86,7 +89,7 @@ def stretch_curvature(R, w_rot, rot_out):
                     rot_out[j, 3 * b + a, 3 * b + a] += 2.0 * w_rot * s
 
 
-@njit(cache=True)
+@njit(cache=True, fastmath={"contract"})
 def hessian_times(kp, ki, kx, rot, rig, bridges, damp, shift, y, out):
     """out = H y (see the module docstring), as (K_σ ⊗ I₃) y + `local_times`; K in 4 × 4 node blocks
     (`CoordinateSplit`: block row pointers, block columns, blocks (B, 16) row-major)."""
@@ -98,7 +101,7 @@ def hessian_times(kp, ki, kx, rot, rig, bridges, damp, shift, y, out):
     local_times(rot, rig, bridges, damp, shift, y, out)
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, inline="always", fastmath={"contract"})
 def _block_row_times(l, o, y, j):
     """Row o of a 4 × 4 block (l[4 o : 4 o + 4]) times a node's 12 coordinate-layout entries y[j : j + 12]:
     the row's three coordinates."""
@@ -108,7 +111,7 @@ def _block_row_times(l, o, y, j):
             a * y[j + 2] + b * y[j + 5] + c * y[j + 8] + d * y[j + 11])
 
 
-@njit(cache=True)
+@njit(cache=True, fastmath={"contract"})
 def block_row(ptr, col, blocks, k, y, s):
     """s − Σ_q blocks[q] y_col[q] over block row k of a matrix in 4 × 4 node blocks (row pointers `ptr`, block
     columns `col`, blocks (B, 16) row-major), for one node's 12 coordinate-layout entries: s and the result are
@@ -129,7 +132,7 @@ def block_row(ptr, col, blocks, k, y, s):
     return s00, s01, s02, s10, s11, s12, s20, s21, s22, s30, s31, s32
 
 
-@njit(cache=True)
+@njit(cache=True, fastmath={"contract"})
 def local_times(rot, rig, bridges, damp, shift, y, out):
     """out += (H − K_σ ⊗ I₃) y: the node and bridge blocks, the damping, minus the shift σ. No graph-wide
     coupling, so after a coordinate solve z = S r the residual r − H z costs only this."""

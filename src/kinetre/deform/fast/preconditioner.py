@@ -16,7 +16,8 @@ They are combined as:
 
 Since K_σ S r = r, the residual after a coordinate solve needs only the node and bridge blocks
 (`after_coordinate_solve`), not a pass over K. A coarse space of region-affine motions (`coarse_space.py`)
-joins the half cycle and the two-level multiplicatively.
+joins the half cycle and the two-level multiplicatively. The coordinate solve uses fused multiply-adds like
+the products of `hessian.py`.
 """
 from __future__ import annotations
 
@@ -167,7 +168,7 @@ def node_solve(factors, r, out):
                                   - a[_K_T + 2, ln] * z[6 + c, ln]) * a[_INV_D + c, ln]
 
 
-@njit(cache=True)
+@njit(cache=True, fastmath={"contract"})
 def coordinate_solve(fac, r, out, work):
     """out = (K_σ ⊗ I₃)⁻¹ r with the block Cholesky factor of `CoordinateSplit` (its `frame_data`): L w = r block row by
     block row (in elimination order, w in `work`), then Lᵀ v = w from the last, scattering along L's rows (one
