@@ -21,6 +21,7 @@ from .graph.graph import DeformationGraph
 from .mesh.mesh import Mesh
 from .motion.fit import Placement
 from .motion.take import Take
+from .skeleton.node_budget import graph_nodes
 from .skeleton.rig import Rig
 from .stopwatch import Stopwatch
 
@@ -39,7 +40,8 @@ class AnimateSettings:
 
     Attributes
     ----------
-    nodes : deformation-graph nodes; seed : their sampling seed
+    nodes : deformation-graph nodes (None: 256, more for a skeleton standing where the mesh's artist put
+        it: `kinetre.skeleton.node_budget`); seed : their sampling seed
     subset : joint names or subset names that drive (None: every joint)
     bind_frame : the take's frame that is the bind (rest) pose
     solver : per-frame solver ("pcg", "exact"; None: the library's default)
@@ -55,7 +57,7 @@ class AnimateSettings:
         fingers the mesh's legs (False: fitted as held)
     """
 
-    nodes: int = 256
+    nodes: int | None = None
     seed: int = 0
     subset: str | tuple[str, ...] | None = None
     bind_frame: int = 0
@@ -69,7 +71,8 @@ class AnimateSettings:
 
     def __post_init__(self):
         """A setting no input can use is refused here, when it is made (BadSettingsError)."""
-        if isinstance(self.nodes, bool) or not isinstance(self.nodes, int) or self.nodes < 2:
+        if self.nodes is not None and (isinstance(self.nodes, bool) or not isinstance(self.nodes, int)
+                                       or self.nodes < 2):
             raise BadSettingsError(f"--nodes must be an integer of at least 2, got {self.nodes!r}")
         if self.fit not in FITS:
             raise BadSettingsError(f"fit must be one of mesh, height, length or None, got {self.fit!r}")
@@ -150,12 +153,13 @@ def animate(mesh: Mesh, take: Take, settings: AnimateSettings = AnimateSettings(
     upright = _upright(mesh, take, s, kept)
     mesh = turned(mesh, upright.up)
     standing = _standing_source(take, mesh, s)
-    graph = kept.graph(upright.up, s.nodes, s.seed) if kept is not None and s.solve else None
+    nodes = s.nodes if s.nodes is not None else graph_nodes(None if standing is None else standing.model)
+    graph = kept.graph(upright.up, nodes, s.seed) if kept is not None and s.solve else None
     weighing = None
     if graph is None:
-        graph = kinetre.build_graph(mesh, nodes=s.nodes, seed=s.seed, weights=False)
+        graph = kinetre.build_graph(mesh, nodes=nodes, seed=s.seed, weights=False)
         # the skinning weights (only a solved animation needs them) are computed on another core meanwhile
-        keep = (lambda g: kept.keep_graph(g, upright.up, s.nodes, s.seed)) if kept is not None else None
+        keep = (lambda g: kept.keep_graph(g, upright.up, nodes, s.seed)) if kept is not None else None
         weighing = _weigh_in_background(graph, mesh, keep) if s.solve else None
     step("graph")
     lap("graph")

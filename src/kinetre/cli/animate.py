@@ -35,7 +35,9 @@ def register(sub) -> None:
     p.add_argument("--map", default=None, metavar="JSON",
                    help="joint map: rename, drop and pair the joints of the --motion sources (docs/joint-maps.md)")
     p.add_argument("-o", "--output", required=True, help=f"output: {' '.join(ANIMATE_OUTPUTS)}")
-    p.add_argument("--nodes", type=int, default=256, help="graph nodes (default 256)")
+    p.add_argument("--nodes", type=int, default=None,
+                   help="graph nodes (default 256; a rig's own skeleton standing in the mesh: 24 per bone, "
+                        "at most 1024)")
     p.add_argument("--seed", type=int, default=0, help="graph sampling seed (default 0)")
     p.add_argument("--subset", action="append", metavar="JOINTS",
                    help='joints that drive, e.g. "right arm" or "HipCenter,right arm" (repeatable)')
@@ -104,7 +106,7 @@ def _animate(args, stats: dict | None) -> int:
         from ..blender.fbx import check_fbx
         check_fbx(args.output)  # before any work: FBX needs Blender
     frames = frame_range(args.frames)
-    if args.nodes < 2:
+    if args.nodes is not None and args.nodes < 2:
         raise UsageError(f"--nodes must be at least 2, got {args.nodes}")
     if args.up not in UPS:  # checked here, not by argparse: one line on stderr, before any file is read
         raise UsageError(f"--up must be one of {', '.join(UPS)}, got {args.up!r}")
