@@ -112,13 +112,15 @@ def _block_row_times(l, o, y, j):
 
 
 @njit(cache=True, fastmath={"contract"})
-def block_row(ptr, col, blocks, k, y, s):
+def block_row(ptr, col, blocks, k, y, s, skip=-1):
     """s − Σ_q blocks[q] y_col[q] over block row k of a matrix in 4 × 4 node blocks (row pointers `ptr`, block
     columns `col`, blocks (B, 16) row-major), for one node's 12 coordinate-layout entries: s and the result are
-    12-tuples (unknown b's coordinate a at 3 b + a), y_j is y[12 j : 12 j + 12]. The entries are scalars:
-    numba keeps scalars in registers but not a small array."""
+    12-tuples (unknown b's coordinate a at 3 b + a), y_j is y[12 j : 12 j + 12]; the block in column `skip` left
+    out. The entries are scalars: numba keeps scalars in registers but not a small array."""
     s00, s01, s02, s10, s11, s12, s20, s21, s22, s30, s31, s32 = s
     for q in range(ptr[k], ptr[k + 1]):
+        if col[q] == skip:
+            continue
         j = 12 * col[q]
         l = blocks[q]
         t0, t1, t2 = _block_row_times(l, 0, y, j)
@@ -130,6 +132,31 @@ def block_row(ptr, col, blocks, k, y, s):
         t0, t1, t2 = _block_row_times(l, 3, y, j)
         s30, s31, s32 = s30 - t0, s31 - t1, s32 - t2
     return s00, s01, s02, s10, s11, s12, s20, s21, s22, s30, s31, s32
+
+
+@njit(cache=True, fastmath={"contract"})
+def off_diagonal_times(kp, ki, kx, rig, bridges, y, base, out):
+    """out = base + (H − blockdiag_j H_jj) y: K's blocks between different nodes and the bridges' cross blocks.
+    For y = H_jj⁻¹ r node by node (a node solve) H y = r + that, so `base` = r gives H y without the node
+    blocks' share of the product."""
+    for i in range(kp.shape[0] - 1):
+        o = 12 * i
+        s = block_row(kp, ki, kx, i, y, (-base[o], -base[o + 1], -base[o + 2], -base[o + 3], -base[o + 4],
+                                         -base[o + 5], -base[o + 6], -base[o + 7], -base[o + 8], -base[o + 9],
+                                         -base[o + 10], -base[o + 11]), i)
+        for u in range(12):
+            out[o + u] = -s[u]
+    for e in range(bridges.shape[0]):
+        oj = 12 * bridges[e, 0]
+        ok = 12 * bridges[e, 1]
+        for u in range(9):
+            a = 0.0
+            b = 0.0
+            for v in range(9):
+                a += rig[e, u, 9 + v] * y[ok + v]
+                b += rig[e, 9 + u, v] * y[oj + v]
+            out[oj + u] += a
+            out[ok + u] += b
 
 
 @njit(cache=True, fastmath={"contract"})

@@ -15,7 +15,8 @@ They are combined as:
   form loses definiteness (far from rotations).
 
 Since K_σ S r = r, the residual after a coordinate solve needs only the node and bridge blocks
-(`after_coordinate_solve`), not a pass over K. A coarse space of region-affine motions (`coarse_space.py`)
+(`after_coordinate_solve`), not a pass over K; likewise, since B's blocks are H's own, H times a node solve's
+result needs only the blocks between nodes (`hessian.off_diagonal_times`). A coarse space of region-affine motions (`coarse_space.py`)
 joins the half cycle and the two-level multiplicatively. The coordinate solve uses fused multiply-adds like
 the products of `hessian.py`.
 """
@@ -25,7 +26,7 @@ import numpy as np
 
 from ...jit import njit
 from .coarse_space import coarse_add
-from .hessian import block_row, hessian_times, local_times
+from .hessian import block_row, hessian_times, local_times, off_diagonal_times
 
 TWO_LEVEL, ADDITIVE, HALF_CYCLE = 1, 2, 3
 
@@ -256,9 +257,11 @@ def precondition(kind, fac, kp, ki, kx, rot, rig, bridges, damp, node_fac, coars
             node_solve(node_fac, t1, t2)
             for i in range(r.shape[0]):
                 z[i] += t2[i]
+            # H z = (H z_C + t1) + (H − B) t2 = r + (H − B) t2, B t2 = t1
+            off_diagonal_times(kp, ki, kx, rig, bridges, t2, r, hz)
         else:
             node_solve(node_fac, r, z)
-        hessian_times(kp, ki, kx, rot, rig, bridges, damp, shift, z, hz)
+            off_diagonal_times(kp, ki, kx, rig, bridges, z, r, hz)  # H z = r + (H − B) z, B z = r
         _coordinate_step(fac, rot, rig, bridges, damp, r, z, hz, t1, t2, work)
         return True
     if kind == TWO_LEVEL and gfac.shape[0]:  # C, the two-level on what is left, C again
@@ -293,7 +296,8 @@ def _two_level(fac, kp, ki, kx, rot, rig, bridges, damp, node_fac, r, z, hz, t1,
     node_solve(node_fac, t1, t2)
     for i in range(r.shape[0]):
         z[i] += t2[i]
-    hessian_times(kp, ki, kx, rot, rig, bridges, damp, shift, z, hz)
+    # H z = (r − t1) + (B t2 + (H − B) t2) = r + (H − B) t2, B t2 = t1
+    off_diagonal_times(kp, ki, kx, rig, bridges, t2, r, hz)
     _coordinate_step(fac, rot, rig, bridges, damp, r, z, hz, t1, t2, work)
 
 
