@@ -35,7 +35,9 @@ COARSE_STEPS = 2
 RATIO_FLOOR = 0.1
 
 
-@njit(cache=True)
+# numpy's error model: Python's tests every division for zero, which keeps the loops over the unknowns from being
+# vectorised; every denominator here is positive
+@njit(cache=True, error_model="numpy")
 def gauss_newton_pcg(x, g, edges, con_nodes, con_weights, con_points, targets, active, bridges,
                      w_rot, w_reg, w_con, w_rig, kind, fac, kp, ki, kx, k_blocks, k_diag,
                      max_iterations, relative_tolerance, cg_iterations, cg_tolerance, lam, max_damping,

@@ -45,27 +45,31 @@ def _gram(jac, w, out):
             out[v, u] = w * s
 
 
-@njit(cache=True)
+@njit(cache=True, fastmath={"contract"})
 def local_blocks(R, bridges, w_rot, w_rig, rot_out, rig_out):
     """Gauss-Newton blocks JᵀJ of E_rot per node (N, 9, 9) and of E_rig's R_kᵀR_j − I per bridge
     (B, 18, 18, [R_j | R_k]), in the coordinate layout (R entry (a, b) at 3 b + a).
 
     E_rot's block in closed form: with c_b the columns of R_j (contiguous in this layout), the 3×3
-    block (b, b') is c_b' c_bᵀ for b ≠ b' and 4 c_b c_bᵀ + Σ_{q≠b} c_q c_qᵀ on the diagonal.
+    block (b, b') is c_b' c_bᵀ for b ≠ b' and 4 c_b c_bᵀ + Σ_{q≠b} c_q c_qᵀ on the diagonal. The block is
+    symmetric: each entry below the diagonal is computed once and mirrored.
     """
     for j in range(R.shape[0]):
         out = rot_out[j]
         for b in range(3):
-            for bb in range(3):
+            for bb in range(b):
                 for a in range(3):
                     for aa in range(3):
-                        if b != bb:
-                            out[3 * b + a, 3 * bb + aa] = w_rot * R[j, a, bb] * R[j, aa, b]
-                        else:
-                            s = 3.0 * R[j, a, b] * R[j, aa, b]
-                            for q in range(3):
-                                s += R[j, a, q] * R[j, aa, q]
-                            out[3 * b + a, 3 * b + aa] = w_rot * s
+                        v = w_rot * R[j, a, bb] * R[j, aa, b]
+                        out[3 * b + a, 3 * bb + aa] = v
+                        out[3 * bb + aa, 3 * b + a] = v
+            for a in range(3):
+                for aa in range(a + 1):
+                    s = 3.0 * R[j, a, b] * R[j, aa, b]
+                    for q in range(3):
+                        s += R[j, a, q] * R[j, aa, q]
+                    out[3 * b + a, 3 * b + aa] = w_rot * s
+                    out[3 * b + aa, 3 * b + a] = w_rot * s
     jr = np.zeros((9, 18))
     for e in range(bridges.shape[0]):
         rigidity_block_jacobian(R, bridges[e, 0], bridges[e, 1], True, jr)
