@@ -90,8 +90,17 @@ async function single() {
     result.rigging = { attachable, tracked: rigging.trackedJoints };
     await possess(page, 'page');
     await screenshot(page, 'studio-possessed.png');
+    // this page's live motion meter: the server's figures for its user, as the status line shows them
+    const meter = () => until(page, () => {
+      const s = window.kinetre.state();
+      const me = s.users.find((u) => u.client === s.client);
+      return me?.quality?.jitter != null
+        && { quality: me.quality, cleaning: me.cleaning, status: document.querySelector('#status').textContent };
+    }, null, 60000);
+    result.meter = [await meter()];
     const moving = await watchVertices(page, 6);
     result.possessedSpread = spread(moving);
+    result.meter.push(await meter());
     const during = await state(page);
     result.perf = { fps: during.fps, renderMs: during.renderMs, updateMs: during.updateMs, detectMs: during.detectMs,
       latencyMs: during.latencyMs };

@@ -39,3 +39,14 @@ def test_each_user_has_a_motion_meter(bundle):
     assert "your motion: jitter −55 %, feet held 80 %, slide 0.3 cm, lag 2 ms" in text
     assert "p2's motion: jitter −80 %, feet held 0 %, lag 2 ms" in text
     assert "old's motion" not in text  # a server without the meter: nothing shown
+
+
+def test_the_meter_says_what_cleaning_applies(bundle):
+    quality = {"frames": 90, "jitter_tracked": 4.2, "jitter": 4.2, "lag_ms": 0.0, "held": 0.5, "stray_cm": 0.8}
+    users = [{"client": "me", "possessing": True, "subset": None, "frames": 90, "attached": [], "quality": quality,
+              "cleaning": []},
+             {"client": "sample", "possessing": False, "subset": None, "frames": 90, "attached": [],
+              "quality": quality, "cleaning": ["contact"]}]
+    text = line(bundle, users)
+    assert "your motion: jitter 4.2 m/s², as tracked" in text          # --raw, or mocap as sent
+    assert "sample's motion: jitter 4.2 m/s², feet held 50 %, slide 0.8 cm ·" in text  # --contact: no lag

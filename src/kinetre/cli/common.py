@@ -86,6 +86,21 @@ def add_cleanup_options(p) -> None:
                    help="write the motion's quality (jitter, foot skate, ground, lag) before and after, as JSON")
 
 
+def add_live_cleanup_options(p) -> None:
+    """--raw and --contact for a live scene: how users' frames are cleaned before the solve."""
+    p.add_argument("--raw", action="store_true",
+                   help="solve camera users' frames as tracked: no smoothing, no foot contact (both on by default)")
+    p.add_argument("--contact", action="store_true",
+                   help="also hold the feet of mocap users (the sample motion, VMC performers) on the room's floor")
+
+
+def live_cleanup(args) -> dict:
+    """The `clean` and `contact` keywords of a live scene from --raw and --contact."""
+    if args.raw and args.contact:
+        raise UsageError("--raw and --contact contradict each other: give one")
+    return {"clean": not args.raw, "contact": args.contact}
+
+
 def cleaned(take, args, say):
     """The take smoothed and its feet held (kinetre.motion.cleanup) when it is a camera take (unless --raw)
     or --contact asks (contact only: mocap is smooth already); as it is when it records a cleaning already."""

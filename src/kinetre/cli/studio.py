@@ -1,7 +1,7 @@
 """`kinetre studio [MESH]`: the live studio server, opened in a browser."""
 from __future__ import annotations
 
-from .common import add_room_options, room_token
+from .common import UsageError, add_live_cleanup_options, add_room_options, live_cleanup, room_token
 
 
 def register(sub) -> None:
@@ -11,9 +11,7 @@ def register(sub) -> None:
     p.add_argument("--port", type=int, default=8000)
     p.add_argument("--host", default="127.0.0.1")
     p.add_argument("--no-browser", action="store_true", help="do not open a browser")
-    p.add_argument("--clean", action="store_true",
-                   help="smooth the users' body frames and hold their feet on the room's floor before the solve; "
-                        "the page shows each user's motion meter")
+    add_live_cleanup_options(p)
     add_room_options(p)
     p.add_argument("--remote-scene", action="store_true",
                    help="no scene in this server: a `kinetre scene` process on the same NATS room solves")
@@ -47,8 +45,11 @@ def cmd_studio(args) -> int:
         vmc = parse_address(args.vmc)
         VmcSender(*vmc).close()                    # an address that does not resolve fails now, not per frame
     vmc_listen = listen_address(args.vmc_listen) if args.vmc_listen is not None else None
+    cleanup = live_cleanup(args)
+    if args.remote_scene and (args.raw or args.contact):
+        raise UsageError("--raw and --contact apply where the scene solves: give them to `kinetre scene`")
     _models_for_the_page()
     run_studio(args.mesh, host=args.host, port=args.port, open_browser=not args.no_browser, nats=args.nats,
                room=args.room, token=room_token(args), remote_scene=args.remote_scene, nkey=args.nkey, vmc=vmc,
-               vmc_listen=vmc_listen, clean=args.clean)
+               vmc_listen=vmc_listen, **cleanup)
     return 0

@@ -74,7 +74,7 @@ async def model_get(request: Request) -> Response:
 def create_app(mesh_path: str | None = None, nodes: int = NODES, sample_motion: bool = True, *,
                nats: str | None = None, room: str = "main", token: str | None = None,
                remote_scene: bool = False, nkey: str | None = None, vmc: tuple[str, int] | None = None,
-               vmc_listen: tuple[str, int] | None = None, clean: bool = False,
+               vmc_listen: tuple[str, int] | None = None, clean: bool = True, contact: bool = False,
                resume_s: float = RESUME_S) -> Starlette:
     """The studio as an ASGI app (tests run it under uvicorn on 127.0.0.1).
 
@@ -83,7 +83,8 @@ def create_app(mesh_path: str | None = None, nodes: int = NODES, sample_motion: 
     the pages' gateway to it (remote.py). A `token` is required from every client (access.py); `nkey`, the
     room's nkey seed file, then authenticates to NATS instead of the token. `vmc` (host, port): the avatars
     send VMC there (vmc_out.py); `vmc_listen` (host, port): VMC performers there become users (vmc_in.py).
-    `clean`: users' body frames are smoothed and their feet held before the solve (kinetre.motion.cleanup).
+    `clean`: camera users' body frames are smoothed and their feet held before the solve (kinetre.motion.cleanup);
+    `contact`: mocap users' feet are held too (the sample player, VMC performers; see `Scene`).
     `resume_s`: how long a page whose connection dropped keeps its user for its reconnect (sessions.py).
     """
     hub = NatsChannels(room) if nats else Hub()
@@ -98,7 +99,7 @@ def create_app(mesh_path: str | None = None, nodes: int = NODES, sample_motion: 
         raw = load_mesh(path)
         mesh, graph, upright = prepare_upright(raw, path, nodes)
         scene = Scene(hub, mesh, graph, Path(path).name, solver=SolveWorker(),  # the solve never holds the server
-                      upright=upright, new_solver=SolveWorker, clean=clean)
+                      upright=upright, new_solver=SolveWorker, clean=clean, contact=contact)
         player = sample_player(hub) if sample_motion and mesh_path is None else None
         host = LocalScene(hub, scene, player, nodes=nodes, source=(raw, Path(path).name))
     shelf = Shelf()
@@ -171,7 +172,7 @@ def run_studio(mesh_path: str | None, host: str = "127.0.0.1", port: int = 8000,
                nodes: int = NODES, sample_motion: bool = True, *, nats: str | None = None, room: str = "main",
                token: str | None = None, remote_scene: bool = False, nkey: str | None = None,
                vmc: tuple[str, int] | None = None, vmc_listen: tuple[str, int] | None = None,
-               clean: bool = False) -> None:
+               clean: bool = True, contact: bool = False) -> None:
     """Serve the studio until interrupted (what `kinetre studio` runs). Raises KinetreError on a bad mesh,
     an unreachable or refusing NATS server, a non-loopback `host` without a `token`, or a VMC port that
     cannot be listened on.
@@ -185,7 +186,7 @@ def run_studio(mesh_path: str | None, host: str = "127.0.0.1", port: int = 8000,
     if vmc_listen is not None:
         check_listen(*vmc_listen)
     app = create_app(mesh_path, nodes, sample_motion, nats=nats, room=room, token=token, remote_scene=remote_scene,
-                     nkey=nkey, vmc=vmc, vmc_listen=vmc_listen, clean=clean)
+                     nkey=nkey, vmc=vmc, vmc_listen=vmc_listen, clean=clean, contact=contact)
     url = f"http://{'127.0.0.1' if host in ('0.0.0.0', '::') else host}:{port}/"
     if token:
         url += f"?token={token}"

@@ -20,9 +20,9 @@ from ..mesh.upright import AXES
 from .channels import Channels, Frame, now_ms
 from .jobs import Job, Jobs, prepare_upload
 from .meshes import NODES, mesh_payload, prepare_upright
-from .player import SAMPLE_CLIENT, MotionPlayer, read_motion
-from .protocol import (ProtocolError, check_hand, check_subset, is_person_of, parse_mesh, parse_person,
-                       parse_place, person_client)
+from .player import MotionPlayer, read_motion
+from .protocol import (SAMPLE_CLIENT, ProtocolError, check_hand, check_subset, is_person_of, parse_mesh,
+                       parse_person, parse_place, person_client)
 from .recording import Takes, record_take
 from .scene import Scene
 from .subjects import client_subject

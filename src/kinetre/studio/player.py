@@ -1,7 +1,8 @@
 """A server-side capture client that plays recorded motion (a BVH take) on its own skeleton channel.
 
 It is the sample motion that keeps the page alive before any camera is granted: it publishes frames
-exactly like a webcam page does (on `skeleton_subject(client)`), so the scene cannot tell them apart.
+exactly like a webcam page does (on `skeleton_subject(client)`); the scene tells them apart only by name
+(`protocol.sends_mocap`: its mocap is not cleaned as a camera's is).
 A motion file the user uploads (BVH, glTF, VRM Animation, a Kinetre take) plays the same way (`read_motion`).
 """
 from __future__ import annotations
@@ -17,10 +18,9 @@ from ..errors import BadMotionError, KinetreError
 from ..skeleton.models import Skeleton
 from .channels import Channels, Frame, now_ms
 from .meshes import data_path
-from .protocol import SkeletonFrame, skeleton_json
+from .protocol import SAMPLE_CLIENT, SkeletonFrame, skeleton_json
 from .subjects import skeleton_subject
 
-SAMPLE_CLIENT = "sample"
 # motion files a user may upload to play instead of the sample (a single-file glTF: .glb or embedded .gltf)
 PLAYABLE = (".bvh", ".vrma", ".glb", ".gltf", ".kinetre.jsonl")
 

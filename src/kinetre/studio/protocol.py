@@ -259,6 +259,24 @@ def check_subset(value) -> str | list | None:
     raise ProtocolError(f"subset must be null, a name or a list of names, got {value!r}")
 
 
+# Users who send mocap rather than a camera's tracking: the server's sample player and VMC performers (a
+# sender's own pipeline, often a suit or a tracker that filters already). The scene cleans camera users' frames
+# before the solve and leaves these as sent unless asked (`kinetre studio --contact`).
+SAMPLE_CLIENT = "sample"
+VMC_CLIENT = "vmc"
+
+
+def vmc_client(n: int) -> str:
+    """The user name of the n-th VMC performer (1, 2, …)."""
+    return f"{VMC_CLIENT}{n}"
+
+
+def sends_mocap(client: str) -> bool:
+    """Whether user `client` is the sample player or a VMC performer, not a page's camera (page clients are
+    named `[xxxx-]c<n>[p<k>]`, so neither name can be a page's)."""
+    return client == SAMPLE_CLIENT or (client.startswith(VMC_CLIENT) and client[len(VMC_CLIENT):].isdigit())
+
+
 def person_client(client: str, person: int | None) -> str:
     """The user name of person `person` in `client`'s camera (no dots: it ends a channel subject)."""
     return client if person is None else f"{client}p{person}"

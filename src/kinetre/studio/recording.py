@@ -13,6 +13,7 @@ import asyncio
 import itertools
 import shutil
 import tempfile
+from dataclasses import replace
 from pathlib import Path
 
 from ..errors import KinetreError
@@ -59,7 +60,10 @@ async def record_take(scene: Scene, takes: Takes, fps: float = TAKE_FPS) -> dict
     files, meshes = {}, []
     for mesh_id, take in recorded.items():
         m = scene.meshes[mesh_id]
-        written = await asyncio.to_thread(export_take, folder, m.mesh, m.graph, take, fps, f"take-mesh{mesh_id}")
+        clients = list(take[0].skeletons)
+        applied = scene.users.applied(clients[0]) if clients else None  # the skeletons were cleaned as solved
+        written = await asyncio.to_thread(export_take, folder, m.mesh, m.graph, take, fps, f"take-mesh{mesh_id}",
+                                          applied)
         urls = {kind: f"/api/takes/{take_id}/{name}" for kind, name in written.items()}
         files.update({f"{kind}-{mesh_id}": url for kind, url in urls.items()})
         meshes.append({"id": mesh_id, "name": m.name, "frames": len(take), "files": urls})
@@ -67,9 +71,11 @@ async def record_take(scene: Scene, takes: Takes, fps: float = TAKE_FPS) -> dict
             "meshes": meshes}
 
 
-def export_take(folder: Path, mesh, graph, take, fps: float, stem: str = "take") -> dict[str, str]:
+def export_take(folder: Path, mesh, graph, take, fps: float, stem: str = "take",
+                applied: dict | None = None) -> dict[str, str]:
     """Write the take as GLB (the mesh animated), node transforms (physics replay), BVH and the skeleton
-    stream of its first user, as `stem`.glb and so on."""
+    stream of its first user, as `stem`.glb and so on; `applied`: what cleaned that user's frames (the
+    stream's header records it, so nothing cleans them again)."""
     from ..export.gltf import write_gltf
     files = {}
     write_gltf(folder / f"{stem}.glb", mesh, graph, [f.pose for f in take], fps)
@@ -85,7 +91,8 @@ def export_take(folder: Path, mesh, graph, take, fps: float, stem: str = "take")
         write_bvh(folder / f"{stem}.bvh", frames, fps)
         files["bvh"] = f"{stem}.bvh"
         from ..motion import stream
-        stream.write_stream(folder / f"{stem}.kinetre.jsonl", user_take(first, clients[0], fps))
+        stream.write_stream(folder / f"{stem}.kinetre.jsonl",
+                            replace(user_take(first, clients[0], fps), applied=applied))
         files["stream"] = f"{stem}.kinetre.jsonl"
     return files
 

@@ -247,14 +247,17 @@ class GatewayScene:
 
 # --- the scene side ------------------------------------------------------------------------------------
 async def serve_scene(mesh_path: str | None, url: str, room: str = "main", token: str | None = None,
-                      nodes: int = NODES, sample_motion: bool = False, started=None, nkey: str | None = None) -> None:
-    """`kinetre scene`: run until cancelled. `started(host)` (the LocalScene) is called once it serves."""
+                      nodes: int = NODES, sample_motion: bool = False, started=None, nkey: str | None = None,
+                      clean: bool = True, contact: bool = False) -> None:
+    """`kinetre scene`: run until cancelled. `started(host)` (the LocalScene) is called once it serves.
+    `clean`, `contact`: how users' frames are cleaned before the solve (see `Scene`)."""
     await probe_nats(url, room, token, nkey)  # a refusal is reported before the mesh is loaded
     path = mesh_path or str(data_path("spot.obj"))
     mesh, graph = await asyncio.to_thread(prepare_mesh, path, nodes)
     # connected only once the scene exists: nobody may hear of it before it subscribes (see below)
     bus = NatsChannels(room)
-    scene = Scene(bus, mesh, graph, Path(path).name, solver=SolveWorker(), new_solver=SolveWorker)
+    scene = Scene(bus, mesh, graph, Path(path).name, solver=SolveWorker(), new_solver=SolveWorker, clean=clean,
+                  contact=contact)
     host = LocalScene(bus, scene, nodes=nodes, settle=0.1)  # the sample's frames make a round trip
     await bus.start(url, token, name="kinetre-scene", nkey=nkey)
     if sample_motion and mesh_path is None:
@@ -341,13 +344,13 @@ async def serve_scene(mesh_path: str | None, url: str, room: str = "main", token
 
 
 def run_scene(mesh_path: str | None, url: str, room: str = "main", token: str | None = None, nodes: int = NODES,
-              sample_motion: bool = False, nkey: str | None = None) -> None:
+              sample_motion: bool = False, nkey: str | None = None, clean: bool = True, contact: bool = False) -> None:
     """What `kinetre scene` runs: serve until interrupted. Raises KinetreError (NetworkError) on bad input."""
     def started(host: LocalScene) -> None:
         first = host.scene.meshes.first
         print(f"Kinetre scene: {first.name} ({first.graph.node_count} nodes) in room {room!r} "
               f"on {url} (Ctrl+C to stop)", flush=True)
-    main = serve_scene(mesh_path, url, room, token, nodes, sample_motion, started, nkey)
+    main = serve_scene(mesh_path, url, room, token, nodes, sample_motion, started, nkey, clean, contact)
     try:  # uvloop, as uvicorn runs the studio (uvicorn[standard] installs it): each message's hops are cheaper
         import uvloop
     except ImportError:

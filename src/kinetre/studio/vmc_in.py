@@ -17,7 +17,7 @@ import numpy as np
 from ..skeleton.models import Skeleton
 from ..vmc.receive import VmcListener
 from .channels import Channels, Frame, now_ms
-from .protocol import SkeletonFrame, skeleton_json
+from .protocol import SkeletonFrame, skeleton_json, vmc_client
 from .subjects import skeleton_subject
 
 log = logging.getLogger("kinetre.studio")
@@ -47,7 +47,7 @@ class VmcUsers:
 
     def client(self, address) -> str:
         if address not in self.clients:
-            self.clients[address] = f"vmc{len(self.clients) + 1}"
+            self.clients[address] = vmc_client(len(self.clients) + 1)
         return self.clients[address]
 
     def receive(self, address, skeleton: Skeleton, blendshapes: np.ndarray | None = None) -> None:

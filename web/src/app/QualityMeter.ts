@@ -10,12 +10,20 @@ export interface MotionQuality {
   stray_cm: number | null; // 95th percentile of a held foot's distance from its hold
 }
 
-export function qualityMeter(q: MotionQuality | null | undefined): string {
+/** The meter's words for a user whose frames the server cleans by `cleaning` ("smoothing", "contact", both or
+ * neither; absent from older servers, which meant both): what smoothing removed, or the jitter itself when
+ * nothing smooths; the feet figures only while contact holds them. */
+export function qualityMeter(q: MotionQuality | null | undefined, cleaning?: string[] | null): string {
   if (!q || q.jitter === null || q.jitter_tracked === null) return '';
+  const smoothed = !cleaning || cleaning.includes('smoothing');
+  const held = !cleaning || cleaning.includes('contact');
   const parts: string[] = [];
-  if (q.jitter_tracked > 0) parts.push(`jitter −${Math.max(0, Math.round(100 * (1 - q.jitter / q.jitter_tracked)))} %`);
-  if (q.held !== null) parts.push(`feet held ${Math.round(100 * q.held)} %`);
-  if (q.held && q.stray_cm !== null) parts.push(`slide ${q.stray_cm.toFixed(1)} cm`);
-  if (q.lag_ms !== null) parts.push(`lag ${Math.round(q.lag_ms)} ms`);
+  if (smoothed && q.jitter_tracked > 0) {
+    parts.push(`jitter −${Math.max(0, Math.round(100 * (1 - q.jitter / q.jitter_tracked)))} %`);
+  } else if (!smoothed) parts.push(`jitter ${q.jitter.toFixed(1)} m/s²`);
+  if (held && q.held !== null) parts.push(`feet held ${Math.round(100 * q.held)} %`);
+  if (held && q.held && q.stray_cm !== null) parts.push(`slide ${q.stray_cm.toFixed(1)} cm`);
+  if (smoothed && q.lag_ms !== null) parts.push(`lag ${Math.round(q.lag_ms)} ms`);
+  if (!smoothed && !held) parts.push('as tracked');
   return parts.join(', ');
 }

@@ -28,7 +28,7 @@ export function statusLine(f: StatusFacts): string {
     parts.push(drivers.length ? `driven by ${drivers.join(' + ')}` : 'nobody possesses the mesh');
     if (f.state.solve_ms !== null) parts.push(`solve ${f.state.solve_ms.toFixed(1)} ms`);
     for (const u of f.state.users) {  // each user's live motion meter
-      const meter = qualityMeter(u.quality);
+      const meter = qualityMeter(u.quality, u.cleaning);
       if (meter) parts.push(`${u.client === f.client ? 'your' : `${u.client}'s`} motion: ${meter}`);
     }
   }

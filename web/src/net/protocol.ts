@@ -24,6 +24,7 @@ export interface UserState {
   frames: number;
   attached: number[];
   quality?: MotionQuality | null; // the live motion meter (app/QualityMeter.ts); absent from older servers
+  cleaning?: string[]; // what cleans its body frames before the solve: "smoothing", "contact" (none: as sent)
 }
 
 export interface PlacementState {

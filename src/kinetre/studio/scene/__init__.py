@@ -27,7 +27,6 @@ from ...mesh.upright import Upright
 from ...skeleton.subsets import subset_mask
 from ..channels import Channels, Frame, now_ms
 from ..placement import beside
-from ..player import SAMPLE_CLIENT
 from ..subjects import SKELETONS, STATE
 from . import meshes as placing
 from .meshes import MeshError, Meshes, SceneMesh
@@ -63,18 +62,19 @@ class Scene:
     new_solver : callable, optional
         Makes the solver of each mesh added later (default: InlineSolver).
     clean : bool
-        Clean the users' body frames live before the solve (smoothing, feet held on one floor for the room;
-        kinetre.motion.cleanup), but the sample player's (the studio server does; `kinetre studio --raw`
-        does not).
+        Clean camera users' body frames live before the solve: smoothed, feet held on one floor for the room
+        (kinetre.motion.cleanup; on by default, off with `kinetre studio --raw`).
+    contact : bool
+        Also hold the feet of mocap users (the sample player, VMC performers), unsmoothed (`--contact`).
     """
 
     def __init__(self, hub: Channels, mesh: Mesh, graph: DeformationGraph, name: str = "mesh", solver=None,
                  upright: Upright | None = None, new_solver: Callable[[], object] = InlineSolver,
-                 clean: bool = False):
+                 clean: bool = True, contact: bool = False):
         self.hub = hub
         self.new_solver = new_solver
         self.meshes = Meshes()
-        self.users = Users(clean, as_sent=(SAMPLE_CLIENT,))  # the sample player's mocap is clean already
+        self.users = Users(clean, contact)
         self.recording = Recording()
         self.publisher = Publisher(hub, self.recording)
         self.possession = Possession(self.users, self.meshes, self.publisher)

@@ -28,7 +28,7 @@ def scene_state(meshes: Meshes, users: Users, recording: bool, joint_map, error:
         "meshes": listed,
         "users": [{"client": u.client, "possessing": u.bind is not None, "mesh": u.mesh, "subset": u.subset,
                    "hand": u.hand, "frames": u.frames, "attached": attached.get(u.client, []),
-                   "quality": None if u.meter is None else u.meter.figures()}
+                   "cleaning": u.cleaning, "quality": None if u.meter is None else u.meter.figures()}
                   for u in users.values()],
         "recording": recording,
         "joint_map": None if joint_map is None else {"name": joint_map.path, "sources": len(joint_map.sources)},

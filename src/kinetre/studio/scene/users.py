@@ -13,15 +13,16 @@ from dataclasses import dataclass
 from typing import Callable
 
 import numpy as np
+import scipy.signal  # noqa: F401  cleaning tunes its filter with it: loaded with the server, not mid-frame
 
-from ...motion.cleanup import LiveCleaner, RoomFloor
+from ...motion.cleanup import CleanupSettings, LiveCleaner, RoomFloor
 from ...motion.hands import SIDES, HandPuppet
 from ...motion.quality import LiveMeter
 from ...skeleton.models import HAND21, KINECT20, Skeleton
 from ...skeleton.subsets import subset_mask
 from ..channels import Frame
 from ..placement import Placement
-from ..protocol import ProtocolError, SkeletonFrame, parse_frame, parse_message
+from ..protocol import ProtocolError, SkeletonFrame, parse_frame, parse_message, sends_mocap
 from ..subjects import last_token
 
 # how long a possession waits for the user's first tracked frame: a page sends "possess" right after its
@@ -67,7 +68,7 @@ class User:
     hand: str | None = None  # "left" or "right" while a hand possesses (a hand puppet), None for the body
     puppet: HandPuppet | None = None  # that hand put inside the mesh, fitted at possession
     cleaner: LiveCleaner | None = None  # smooths its body frames and holds its feet (None: used as they come)
-    meter: LiveMeter | None = None  # its live motion quality (with a cleaner)
+    meter: LiveMeter | None = None  # its live motion quality, as tracked and as cleaned
 
     @property
     def latest(self) -> Skeleton | None:
@@ -107,28 +108,39 @@ class User:
     def possessing(self) -> bool:
         return self.bind is not None
 
-    def take_frame(self, frame: SkeletonFrame) -> None:
+    def take_frame(self, frame: SkeletonFrame, metered: bool = True) -> None:
         """Keep `frame` as the newest parsed frame, its body cleaned first when the user has a cleaner
-        (kinetre.motion.cleanup: causal, no frame of delay) and measured by its meter."""
+        (kinetre.motion.cleanup: causal, no frame of delay) and measured by its meter (unless not `metered`:
+        a frame parsed late, after others went unread, would break the meter's time series)."""
         skeleton = frame.skeleton
-        if self.cleaner is not None and skeleton.model is self.cleaner.model:
+        if self.meter is not None and (metered or self.cleaner is not None) and skeleton.model is KINECT20:
             seconds = frame.t / 1000.0  # frames carry milliseconds
-            cleaned = self.cleaner(np.where(skeleton.tracked[:, None], skeleton.positions, np.nan), seconds)
-            held, hold = self.cleaner.held()
-            joints = list(self.cleaner.joints or ())
-            self.meter.add(skeleton.positions, cleaned, seconds, held,
-                           np.linalg.norm(cleaned[joints] - hold, axis=1) if joints else None)
-            skeleton = Skeleton(skeleton.model, np.where(np.isfinite(cleaned), cleaned, skeleton.positions),
-                                skeleton.tracked)
+            seen = np.where(skeleton.tracked[:, None], skeleton.positions, np.nan)
+            if self.cleaner is None:
+                self.meter.add(seen, seen, seconds)
+            else:
+                cleaned = self.cleaner(seen, seconds)
+                held, hold = self.cleaner.held()
+                joints = list(self.cleaner.joints or ())
+                self.meter.add(seen, cleaned, seconds, held,
+                               np.linalg.norm(cleaned[joints] - hold, axis=1) if joints else None)
+                skeleton = Skeleton(skeleton.model, np.where(np.isfinite(cleaned), cleaned, skeleton.positions),
+                                    skeleton.tracked)
         self.parsed, self.parsed_hands, self.parsed_blendshapes, self.raw = \
             skeleton, frame.hands, frame.blendshapes, None
+
+    @property
+    def cleaning(self) -> list[str]:
+        """What cleans its body frames before the solve: "smoothing", "contact", both or neither."""
+        applied = self.cleaner.describe() if self.cleaner is not None else {}
+        return [k for k in ("smoothing", "contact") if k in applied]
 
     def _parse_raw(self) -> None:
         if self.raw is not None:
             raw, self.raw = self.raw, None
             frame = parse(raw)
             if frame is not None:
-                self.take_frame(frame)
+                self.take_frame(frame, metered=False)
 
     def let_go(self) -> None:
         """Possess nothing (the subset stays: it is the user's choice for the next possession)."""
@@ -163,12 +175,14 @@ class User:
 class Users(dict):
     """The scene's users by client, and what became of the frames that reached it.
 
-    With `clean`, every user's body frames but those of the clients in `as_sent` (mocap, such as the sample
-    player) are cleaned live before the solve, all on one floor for the room (`room`)."""
+    Before the solve, a camera user's body frames are smoothed and their feet held with `clean` (the studio's
+    default; `kinetre studio --raw` turns it off); a mocap user's (`protocol.sends_mocap`: the sample player,
+    VMC performers) only have their feet held, with `contact` (`--contact`), as `kinetre animate` treats mocap.
+    All feet are held on one floor for the room (`room`). Every user's motion is metered (`User.meter`)."""
 
-    def __init__(self, clean: bool = True, as_sent: tuple[str, ...] = ()):
+    def __init__(self, clean: bool = True, contact: bool = False):
         super().__init__()
-        self.clean, self.as_sent = clean, tuple(as_sent)
+        self.clean, self.contact = clean, contact
         self.room = RoomFloor()
         self.late = 0  # skeleton frames older than the user's newest (dropped)
         self.superseded = 0  # possessing users' frames replaced by a newer one before any solve used them
@@ -177,10 +191,22 @@ class Users(dict):
     def user(self, client: str) -> User:
         """User `client`, added on first mention."""
         if client not in self:
-            user = self[client] = User(client)
-            if self.clean and client not in self.as_sent:
-                user.cleaner, user.meter = LiveCleaner(KINECT20, room=self.room), LiveMeter()
+            user = self[client] = User(client, meter=LiveMeter())
+            settings = self.cleanup(client)
+            if settings is not None:
+                user.cleaner = LiveCleaner(KINECT20, settings, room=self.room)
         return self[client]
+
+    def cleanup(self, client: str) -> CleanupSettings | None:
+        """How user `client`'s body frames are cleaned, None when they are used as sent."""
+        if sends_mocap(client):
+            return CleanupSettings(smooth=False) if self.contact else None
+        return CleanupSettings() if self.clean else None
+
+    def applied(self, client: str) -> dict | None:
+        """What cleans user `client`'s frames, for a take's `applied` header (None: as sent)."""
+        settings = self.cleanup(client)
+        return None if settings is None else LiveCleaner(KINECT20, settings).describe()
 
     def possessing(self, mesh_id: int) -> list[str]:
         """The clients possessing mesh `mesh_id`, in the order they came."""
@@ -193,7 +219,7 @@ class Users(dict):
         parsed = None
         if frame.value is not None:
             parsed = frame.value  # decoded by the publisher in this process
-        elif user.bind is not None:
+        elif user.bind is not None or user.cleaner is not None:  # a cleaner takes every frame, in order
             parsed = parse(frame.data)
             if parsed is None:
                 return None
