@@ -96,7 +96,7 @@ class StudioClient:
         while not predicate(self):
             remaining = deadline - time.monotonic()
             if remaining <= 0:
-                raise TimeoutError("condition not met; last messages: " + json.dumps(self.messages[-3:])[:800])
+                raise TimeoutError("condition not met; errors: " + json.dumps([m for m in self.messages if m["type"] == "error"][-3:]) + "; last messages: " + json.dumps(self.messages[-3:])[:800])
             self._changed.clear()
             try:
                 await asyncio.wait_for(self._changed.wait(), min(remaining, 0.5))

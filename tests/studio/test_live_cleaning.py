@@ -18,18 +18,22 @@ FPS = 30.0
 FEET = [kinetre.KINECT20.index(n) for n in ("FootLeft", "FootRight")]
 
 
-def frames(seed: int, x: float, n: int = 120):
+def frames(seed: int, x: float, n: int = 120, start: int = 0):
     rng = np.random.default_rng(seed)
     base = tpose(1.7, (x, 0.0, 0.0)).positions
-    for k in range(n):
+    for k in range(start, start + n):
         pos = base + rng.normal(0.0, 0.01, base.shape)
         yield SkeletonFrame(k, 1000.0 * k / FPS, kinetre.Skeleton.from_positions(kinetre.KINECT20, pos))
 
 
-def feed(users: Users, clients) -> dict:
+def feed(users: Users, clients, possessing: bool = True, start: int = 0) -> dict:
+    """Each client's frames, sent while it possesses a mesh (only then do its frames drive a solve)."""
     raw = {}
     for client, seed, x in clients:
-        for f in frames(seed, x):
+        if possessing:
+            user = users.user(client)
+            user.bind, user.mesh = tpose(1.7, (x, 0.0, 0.0)), 1
+        for f in frames(seed, x, start=start):
             users.receive(Frame(skeleton_subject(client), f.seq, f.t, b"", f))
             raw[client] = f.skeleton
     return raw
@@ -48,6 +52,18 @@ def test_camera_users_are_cleaned_on_one_floor_and_metered_mocap_as_sent():
     q = a.meter.figures()
     assert q["frames"] in (90, 91) and q["jitter"] < q["jitter_tracked"] / 2 and q["held"] > 0.9
     assert abs(q["lag_ms"]) <= 1000 / FPS
+
+
+def test_onlookers_are_neither_cleaned_nor_metered_until_they_possess():
+    users = Users()
+    raw = feed(users, (("c1", 1, 0.0),), possessing=False)
+    c1 = users["c1"]
+    assert c1.cleaner is None and c1.latest is raw["c1"] and c1.meter.figures()["frames"] == 0
+    assert c1.cleaning == ["smoothing", "contact"]                              # what will clean it
+    raw = feed(users, (("c1", 2, 0.0),), start=120)
+    assert c1.cleaner is not None and c1.latest is not raw["c1"] and c1.meter.figures()["frames"] >= 90
+    c1.let_go()
+    assert c1.cleaner is None                                                  # the next possession starts afresh
 
 
 def test_contact_holds_mocap_feet_unsmoothed_and_raw_cleans_nobody():

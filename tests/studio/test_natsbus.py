@@ -249,7 +249,8 @@ def test_scene_parses_a_users_frames_only_when_needed(walk):
     mesh, graph = prepare_mesh(str(data_path("spot.obj")), 32)
 
     async def go():
-        scene = Scene(Hub(), mesh, graph, "spot.obj")
+        # raw frames (`kinetre studio --raw`): a cleaned user's frames are all parsed, for the filter sees each
+        scene = Scene(Hub(), mesh, graph, "spot.obj", clean=False)
 
         def send(seq, skeleton=None, data=None):
             data = data if data is not None else frame_message(seq, skeleton, t=float(seq)).encode()
@@ -312,7 +313,8 @@ def run_two_users(walk, monkeypatch, offset_s):
 
     async def go():
         solver = SlowSolver(graph)
-        scene = Scene(Hub(), mesh, graph, "spot.obj", solver=solver)
+        # raw frames: the solver must be handed each frame's own positions, which cleaning would smooth
+        scene = Scene(Hub(), mesh, graph, "spot.obj", solver=solver, clean=False)
         seq = [0]
 
         def send(user, skeleton):

@@ -105,7 +105,7 @@ def test_scene_process_solves_what_a_local_scene_solves(network, walk):
 
     async def remote():
         async with StudioClient(url, A) as c:
-            await possess(c, walk[0])
+            t0 = await possess(c, walk[0])
             t1 = time.time() * 1000
             await c.send(frame_message(2, walk[10], t=t1))
             await wait_for(c, t1)
@@ -113,20 +113,20 @@ def test_scene_process_solves_what_a_local_scene_solves(network, walk):
             nodes = c.state["meshes"][0]["nodes"]
             async with httpx.AsyncClient(base_url=url, params={"token": A}) as http:
                 mesh = (await http.get(c.state["meshes"][0]["url"])).json()  # fetched from the scene over NATS
-            return block, nodes, mesh
+            return block, nodes, mesh, t0, t1
 
-    block, nodes, mesh = asyncio.run(remote())
+    block, nodes, mesh, t0, t1 = asyncio.run(remote())
     _, _, _, _, matrices = unpack_transforms(block)
 
-    async def local():  # the same frames through a Scene in this process
+    async def local():  # the same frames, at the same times (the live cleaning filters by them), in this process
         mesh_, graph = prepare_mesh(str(data_path("spot.obj")), NODES)
         hub = Hub()
         scene = Scene(hub, mesh_, graph, "spot.obj")
-        scene.receive(Frame("kinetre.skeleton.u", 1, 1.0, b"", SkeletonFrame(1, 1.0, walk[0])))
+        scene.receive(Frame("kinetre.skeleton.u", 1, t0, b"", SkeletonFrame(1, t0, walk[0])))
         scene.fit("u")
         await scene.possess("u")
         await scene.solve_once()
-        scene.receive(Frame("kinetre.skeleton.u", 2, 2.0, b"", SkeletonFrame(2, 2.0, walk[10])))
+        scene.receive(Frame("kinetre.skeleton.u", 2, t1, b"", SkeletonFrame(2, t1, walk[10])))
         await scene.solve_once()
         return scene.meshes.first.pose.node_matrices(graph.nodes), graph
 

@@ -338,7 +338,9 @@ class LiveCleaner:
             if self._weight[c] > 0:
                 targets[0, c] = out[j] + self._weight[c] * (self._hold[c] - out[j])
                 weights[0, c] = 1.0
-        if not self.fixed_floor and len(self._stance_pts) >= 10:
+        # a room's floor is fitted by the room from everyone's stance points (this person's among them), and
+        # is there before this person has ten of their own: a floor of their own would go unused
+        if not self.fixed_floor and self.room is None and len(self._stance_pts) >= 10:
             self.floor = fit_floor(np.array(self._stance_pts))
         out, _ = place_contacts(self.model, out[None], targets, weights, self.joints)
         return out[0]

@@ -132,15 +132,23 @@ def tune_one_euro(positions: np.ndarray, fps: float, rest_noise: float = 0.002, 
     j = pos.shape[1]
     noise, speed = np.full(j, np.nan), np.full(j, np.nan)
     w = max(5, int(round(fps / 3)) | 1)
+    seen = np.isfinite(pos).all(axis=2)
+    whole = np.flatnonzero(seen.all(axis=0)) if len(pos) >= w else np.zeros(0, int)
+    if len(whole):  # the joints tracked in every frame, in one pass (the live path retunes every second)
+        fits = savgol_filter(pos[:, whole], w, 3, axis=0)
     for k in range(j):
-        ok = np.isfinite(pos[:, k]).all(axis=1)
         res, spd = [], []
-        for a, b in _runs(ok):
-            if b - a < w:
-                continue
-            fit = savgol_filter(pos[a:b, k], w, 3, axis=0)
-            res.append((pos[a:b, k] - fit).ravel())
+        if k in whole:
+            fit = fits[:, int(np.searchsorted(whole, k))]
+            res.append((pos[:, k] - fit).ravel())
             spd.append(np.linalg.norm(np.diff(fit, axis=0), axis=1) * fps)
+        else:
+            for a, b in _runs(seen[:, k]):
+                if b - a < w:
+                    continue
+                fit = savgol_filter(pos[a:b, k], w, 3, axis=0)
+                res.append((pos[a:b, k] - fit).ravel())
+                spd.append(np.linalg.norm(np.diff(fit, axis=0), axis=1) * fps)
         if res:
             r = np.concatenate(res)
             noise[k] = 1.4826 * np.median(np.abs(r - np.median(r)))

@@ -67,7 +67,9 @@ class User:
     stand: tuple | None = None  # (R, t): where a joint map's source stands, x -> R x + t (see meshes.stand_in)
     hand: str | None = None  # "left" or "right" while a hand possesses (a hand puppet), None for the body
     puppet: HandPuppet | None = None  # that hand put inside the mesh, fitted at possession
-    cleaner: LiveCleaner | None = None  # smooths its body frames and holds its feet (None: used as they come)
+    cleanup: CleanupSettings | None = None  # how its body frames are cleaned while it possesses (None: as sent)
+    room: RoomFloor | None = None  # the room's floor, which its held feet stand on
+    cleaner: LiveCleaner | None = None  # cleaning its frames since it possessed (None: not possessing)
     meter: LiveMeter | None = None  # its live motion quality, as tracked and as cleaned
 
     @property
@@ -113,7 +115,12 @@ class User:
         (kinetre.motion.cleanup: causal, no frame of delay) and measured by its meter (unless not `metered`:
         a frame parsed late, after others went unread, would break the meter's time series)."""
         skeleton = frame.skeleton
-        if self.meter is not None and (metered or self.cleaner is not None) and skeleton.model is KINECT20:
+        # only a possessing user's frames drive a solve: only they are cleaned and metered, so a room of
+        # onlookers costs the server no filtering (a cleaner takes every frame, in order, from possession on)
+        if self.bind is not None and self.cleanup is not None and self.cleaner is None:
+            self.cleaner = LiveCleaner(KINECT20, self.cleanup, room=self.room)
+        if self.bind is not None and self.meter is not None and (metered or self.cleaner is not None) and \
+                skeleton.model is KINECT20:
             seconds = frame.t / 1000.0  # frames carry milliseconds
             seen = np.where(skeleton.tracked[:, None], skeleton.positions, np.nan)
             if self.cleaner is None:
@@ -132,7 +139,7 @@ class User:
     @property
     def cleaning(self) -> list[str]:
         """What cleans its body frames before the solve: "smoothing", "contact", both or neither."""
-        applied = self.cleaner.describe() if self.cleaner is not None else {}
+        applied = LiveCleaner(KINECT20, self.cleanup).describe() if self.cleanup is not None else {}
         return [k for k in ("smoothing", "contact") if k in applied]
 
     def _parse_raw(self) -> None:
@@ -145,6 +152,7 @@ class User:
     def let_go(self) -> None:
         """Possess nothing (the subset stays: it is the user's choice for the next possession)."""
         self.bind = self.mesh = self.stand = self.hand = self.puppet = None
+        self.cleaner = None  # the next possession cleans afresh: its filter and holds start from its frames
 
     def placed(self, skeleton: Skeleton) -> Skeleton:
         """The frame moved to where the user's joint-map source stands (unchanged without one)."""
@@ -191,10 +199,7 @@ class Users(dict):
     def user(self, client: str) -> User:
         """User `client`, added on first mention."""
         if client not in self:
-            user = self[client] = User(client, meter=LiveMeter())
-            settings = self.cleanup(client)
-            if settings is not None:
-                user.cleaner = LiveCleaner(KINECT20, settings, room=self.room)
+            self[client] = User(client, meter=LiveMeter(), cleanup=self.cleanup(client), room=self.room)
         return self[client]
 
     def cleanup(self, client: str) -> CleanupSettings | None:
@@ -219,7 +224,7 @@ class Users(dict):
         parsed = None
         if frame.value is not None:
             parsed = frame.value  # decoded by the publisher in this process
-        elif user.bind is not None or user.cleaner is not None:  # a cleaner takes every frame, in order
+        elif user.bind is not None:
             parsed = parse(frame.data)
             if parsed is None:
                 return None
