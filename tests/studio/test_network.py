@@ -100,25 +100,14 @@ async def possess(c: StudioClient, skeleton, subset=None) -> float:
 
 
 def test_scene_process_solves_what_a_local_scene_solves(network, walk):
-    """Studio and scene in two processes, talking only over NATS: the pose equals an in-process solve."""
+    """Studio and scene in two processes, talking only over NATS: the pose equals an in-process solve.
+
+    The scene's live solve of a frame may yield once the frame is late (a busy machine) and publish the pose
+    it reached; with no newer frame it then solves the same frame on from there, so its last pose for the
+    frame is the in-process solve's (which runs to the end at once)."""
     url = network["url"]
 
-    async def remote():
-        async with StudioClient(url, A) as c:
-            t0 = await possess(c, walk[0])
-            t1 = time.time() * 1000
-            await c.send(frame_message(2, walk[10], t=t1))
-            await wait_for(c, t1)
-            block = next(b for t, b in c.blocks if t == t1)
-            nodes = c.state["meshes"][0]["nodes"]
-            async with httpx.AsyncClient(base_url=url, params={"token": A}) as http:
-                mesh = (await http.get(c.state["meshes"][0]["url"])).json()  # fetched from the scene over NATS
-            return block, nodes, mesh, t0, t1
-
-    block, nodes, mesh, t0, t1 = asyncio.run(remote())
-    _, _, _, _, matrices = unpack_transforms(block)
-
-    async def local():  # the same frames, at the same times (the live cleaning filters by them), in this process
+    async def local(t0, t1):  # the same frames, at the same times (the live cleaning filters by them)
         mesh_, graph = prepare_mesh(str(data_path("spot.obj")), NODES)
         hub = Hub()
         scene = Scene(hub, mesh_, graph, "spot.obj")
@@ -130,11 +119,36 @@ def test_scene_process_solves_what_a_local_scene_solves(network, walk):
         await scene.solve_once()
         return scene.meshes.first.pose.node_matrices(graph.nodes), graph
 
-    expected, graph = asyncio.run(local())
+    async def remote():
+        async with StudioClient(url, A) as c:
+            t0 = await possess(c, walk[0])
+            t1 = time.time() * 1000
+            await c.send(frame_message(2, walk[10], t=t1))
+            expected, graph = await local(t0, t1)
+            tol = 2e-4 * max(1.0, np.abs(expected - np.eye(4)).max())
+
+            def newest(c):  # the last pose published for the frame
+                return next((b for t, b in reversed(c.blocks) if t == t1), None)
+
+            def solved(c):
+                block = newest(c)
+                return block is not None and np.abs(unpack_transforms(block)[4] - expected).max() <= tol
+            try:
+                await c.wait(solved, 60)
+            except TimeoutError:
+                pass  # the assertion below says by how much
+            nodes = c.state["meshes"][0]["nodes"]
+            async with httpx.AsyncClient(base_url=url, params={"token": A}) as http:
+                mesh = (await http.get(c.state["meshes"][0]["url"])).json()  # fetched from the scene over NATS
+            return newest(c), nodes, mesh, expected, graph, tol
+
+    block, nodes, mesh, expected, graph, tol = asyncio.run(remote())
+    assert block is not None, "no pose was published for the frame"
+    _, _, _, _, matrices = unpack_transforms(block)
     assert nodes == graph.node_count == mesh["nodeCount"] == matrices.shape[0]
     moved = np.abs(expected - np.eye(4)).max()
     assert moved > 0.01  # the walk frame really deforms the mesh
-    np.testing.assert_allclose(matrices, expected, atol=2e-4 * max(1.0, moved))
+    np.testing.assert_allclose(matrices, expected, atol=tol)
 
 
 def test_studio_with_its_own_scene_on_nats(network, walk):

@@ -145,3 +145,59 @@ def test_a_pose_held_for_the_next_solve_is_in_the_take_when_recording_stops(spot
 
     take = asyncio.run(go())
     assert [float(frame.pose.translations[0, 0]) for frame in take] == [1.0, 2.0]
+
+
+def test_a_live_solve_cut_short_with_no_newer_frame_goes_on_until_the_frame_is_solved(spot64, walk, monkeypatch):
+    """On a machine too busy for the live budget a solve yields after its first step (its frame is late at
+    once, its CPU share spent) and its pose goes out. With no newer frame to go on with, the live loop solves
+    the same frame on from there, not cut for lateness again: its last pose, under the frame's time, is the
+    uncut solve's."""
+    from kinetre.studio.channels import Frame, Hub
+    from kinetre.studio.scene import Scene, solve_loop
+    from kinetre.studio.subjects import TRANSFORMS
+    from kinetre.wire.transforms import unpack_transforms
+    mesh, graph = spot64
+
+    def frame(k, skeleton):
+        return Frame("kinetre.skeleton.u", k, 1000.0 * k, b"", SkeletonFrame(k, 1000.0 * k, skeleton))
+
+    async def uncut():
+        scene = Scene(Hub(), mesh, graph)
+        scene.receive(frame(1, walk[0]))
+        scene.fit("u")
+        await scene.possess("u")
+        await scene.solve_once()
+        scene.receive(frame(2, walk[10]))
+        await scene.solve_once()
+        return scene.meshes.first.pose.node_matrices(graph.nodes)
+
+    expected = asyncio.run(uncut())
+    monkeypatch.setattr(solve_loop, "LATE_S", 0.0)
+    monkeypatch.setattr(solve_worker, "YIELD_AFTER_S", 0.0)
+    hub = Hub()
+    published = []
+    hub.subscribe(TRANSFORMS).direct = lambda f: published.append(f.data) or True
+
+    async def live():
+        scene = Scene(hub, mesh, graph)
+        scene.receive(frame(1, walk[0]))
+        scene.fit("u")
+        await scene.possess("u")
+        await scene.solve_once()
+        m = scene.meshes.first
+        running = asyncio.get_running_loop().create_task(scene.run())
+        start = len(published)
+        scene.receive(frame(2, walk[10]))
+        for _ in range(3000):  # until the loop waits for a frame again, its last solve not cut short
+            await asyncio.sleep(0.01)
+            if len(published) > start and not m.lock.locked() and not m.dirty.is_set() and not m.solver.stopped:
+                break
+        running.cancel()
+        return published[start:], m.stopped
+
+    blocks, stopped = asyncio.run(live())
+    assert stopped == 1 and len(blocks) == 2  # cut short once, then solved on to the end: both poses went out
+    assert [unpack_transforms(b)[2] for b in blocks] == [2000.0, 2000.0]  # under the frame's own time
+    first, last = (unpack_transforms(b)[4] for b in blocks)
+    assert np.abs(first - expected).max() > 1e-3  # the first pose out was not the solve's end
+    np.testing.assert_allclose(last, expected, atol=2e-4 * max(1.0, np.abs(expected - np.eye(4)).max()))

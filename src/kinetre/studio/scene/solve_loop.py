@@ -121,7 +121,11 @@ class SolveLoops:
                     break
                 await self.gather(m)
                 try:
-                    await self.solve(m, LATE_S)
+                    pose = await self.solve(m, LATE_S)
+                    # a solve cut short for lateness with no newer frame to go on with solves the same frame on
+                    # from the pose it reached (uncut: see `solve`), so a user's last frame ends solved
+                    if pose is not None and getattr(m.solver, "stopped", False) and not m.dirty.is_set():
+                        m.dirty.set()
                 except Exception as exc:  # one bad frame must not stop the scene for everybody
                     self.last_error = f"solve failed: {type(exc).__name__}: {exc}"
                     log.exception("solve failed")
@@ -169,10 +173,11 @@ class SolveLoops:
 
         The solver yields after a Gauss-Newton step (`solve_worker.yielding`) to a newer frame, or once the
         oldest frame it solves has been `late` seconds in the scene (the live loop: `LATE_S`): its pose is
-        published at once and the next frame goes on from it, instead of every viewer's picture waiting for
-        the rest of a long solve. When a newer frame already waits as a solve ends, its pose is published
-        once the next solve is under way: the solver then works while the transforms go out to every page,
-        instead of waiting for them."""
+        published at once and the next frame goes on from it (the live loop solves the same frame on from it,
+        without `late`, when no newer one came), instead of every viewer's picture waiting for the rest of a
+        long solve. When a newer frame already waits as a solve ends, its pose is published once the next solve
+        is under way: the solver then works while the transforms go out to every page, instead of waiting for
+        them."""
         publisher = self.publisher
         async with m.lock:
             users = [self.users[c] for c in m.possessors if c in self.users]
@@ -180,7 +185,9 @@ class SolveLoops:
                 publisher.flush(m)
                 return None
             frames = [u.driving(m.placement) for u in users]
-            arrived = min((u.arrived for u in users if u.used != u.seq), default=time.monotonic())
+            # when the frames were all solved before (the loop goes on with a solve that was cut short), there
+            # is no lateness to cut for again: only a newer frame stops the solve
+            arrived = min((u.arrived for u in users if u.used != u.seq), default=None)
             for u in users:
                 u.used = u.seq
             t_source = max(u.t for u in users)
@@ -188,8 +195,8 @@ class SolveLoops:
             loop = asyncio.get_running_loop()
             if m.unpublished is not None:
                 loop.call_soon(publisher.flush, m)  # runs once the solve's request is out
-            timer = None if late is None else loop.call_later(max(arrived + late - time.monotonic(), 0.0),
-                                                              m.solver.newer_frame)
+            timer = None if late is None or arrived is None else \
+                loop.call_later(max(arrived + late - time.monotonic(), 0.0), m.solver.newer_frame)
             try:
                 pose = await m.solver.solve(frames if len(frames) > 1 else frames[0])
             except SolverLost:
