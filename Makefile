@@ -84,7 +84,8 @@ studio: setup
 test: setup
 	$(PY) -m pytest -q tests
 
-# the quick tier: unit and numeric tests, no browser, studio server, NATS or Blender (see tests/conftest.py)
+# the quick tier: unit and numeric tests, no browser, studio server, NATS, Blender or heavy numeric cases
+# (docs/testing.md; the marks in tests/conftest.py)
 check: python models
 	$(PY) -m pytest -q -m "not slow" tests
 

@@ -10,10 +10,11 @@ from synthetic import body_mesh
 
 DATA = (Path(__file__).resolve().parents[1] / ".." / "shared" / "data").resolve()
 
-# The quick tier (`make check`: pytest -m "not slow") is the unit and numeric tests. A test is `slow` when it
-# needs a running service: a browser (tests/e2e), a studio server process, NATS, Blender, ffmpeg or the
-# command line in a subprocess. Such a test either uses one of these fixtures (each starts a service) or is
-# marked `slow` itself (`pytestmark = pytest.mark.slow` for a whole module).
+# The quick tier (`make check`: pytest -m "not slow") is the unit and numeric tests (docs/testing.md). A test is
+# `slow` when it needs a running service (a browser in tests/e2e, a studio server process, NATS, Blender,
+# ffmpeg, the command line in a subprocess) or heavy numeric work (large real meshes and rigs, scans, video
+# tracking, whole-walk solver agreement). A test using one of these fixtures (each starts a service) is slow;
+# any other is marked `slow` itself (`pytestmark = pytest.mark.slow` for a whole module).
 SERVICE_FIXTURES = frozenset({"studio", "studio_page", "loaded_studio", "creature_studio", "horse_studio",
                               "fresh_studio", "vmc_studio", "nats", "network", "rooms", "probed"})
 

@@ -14,6 +14,7 @@ from kinetre.errors import BadAvatarError
 from avatar.conftest import HUMANOIDS
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name", HUMANOIDS)
 def test_every_humanoid_maps_completely_with_left_on_the_left(rigged, name):
     avatar, bonemap, _ = rigged[name]

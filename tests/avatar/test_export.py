@@ -42,6 +42,7 @@ def diagonal(avatar) -> float:
     return float(np.linalg.norm(hi - lo))
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name", HUMANOIDS)
 def test_the_glb_is_validator_clean_and_animates_the_avatars_own_joints(exported, name):
     path, avatar, motion = exported[name]
@@ -126,6 +127,7 @@ def test_cli_writes_and_then_uses_a_map_next_to_the_avatar(tmp_path, capsys, dat
     assert "ShoulderCenter<-torso_joint_3 (file)" in text
 
 
+@pytest.mark.slow
 def test_cli_drives_an_avatar_from_a_recorded_take_into_a_video(tmp_path, capsys, data_dir):
     import cv2
     take = tmp_path / "walk.kinetre.jsonl"

@@ -153,6 +153,7 @@ def test_vrm_expressions_drive_their_bound_targets(synthetic, tmp_path, version)
     np.testing.assert_allclose(emap.weights(faces)[0], [[0.3, 0.25, 0.8]])
 
 
+@pytest.mark.slow
 def test_capture_to_take_to_avatar_carries_finger_rotations_and_morph_weights(tmp_path, data_dir, synthetic,
                                                                              capsys):
     avatar_path, avatar, bonemap, plan = synthetic

@@ -40,6 +40,7 @@ def _same_start(graph, frames, designs, subset=None):
     return {n: np.array(v) for n, v in gaps.items()}, {n: np.array(v) for n, v in steps.items()}
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("subset", [None, "right arm"])
 def test_default_matches_the_converged_exact_solve_from_the_same_start(walk, subset):
     frames, graph = walk
@@ -57,6 +58,7 @@ def test_default_matches_the_converged_exact_solve_from_the_same_start(walk, sub
         assert steps["default"].mean() < steps["decrease"].mean(), steps
 
 
+@pytest.mark.slow
 def test_remaining_rule_on_two_level_frames(walk):
     """Frames on the two-level preconditioner (the adaptive choice's for most frames at 512 nodes and one
     skeleton) end by the "remaining" rule too, judged from their own steps' contraction: fewer steps than
@@ -70,6 +72,7 @@ def test_remaining_rule_on_two_level_frames(walk):
     assert g.min() > -1e-5 and np.median(g) < 1e-3 and np.percentile(g, 90) < 5e-3 and g.max() < 2e-2, g
 
 
+@pytest.mark.slow
 def test_remaining_rule_stops_before_the_confirming_step(walk):
     """Same frames, same start: with the "remaining" rule no frame takes more steps than with "decrease",
     and a tighter remaining tolerance brings the energy closer to the minimum."""

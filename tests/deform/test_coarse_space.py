@@ -59,6 +59,7 @@ def test_regions_cover_the_graph_and_carry_rigid_motions(armadillo_system):
     assert np.allclose(got, hessian.to_coordinate_layout(field), atol=1e-12)
 
 
+@pytest.mark.slow
 def test_coarse_correction_is_the_galerkin_solve(armadillo_system):
     """`coarse_factor` + `coarse_add` give z = P (Pᵀ H P)⁻¹ Pᵀ r for the assembled H; PCG with the coarse space
     in the half cycle and the two-level solves H x = r."""

@@ -69,6 +69,7 @@ def test_constraints_moved_rigidly_are_met_by_the_rigid_start_alone(walk):
     assert report.energy <= report.energies[0]
 
 
+@pytest.mark.slow
 def test_a_teleport_mid_walk_rejoins_the_exact_solve_and_e_never_rises(data_dir):
     from kinetre.motion.bvh import load_bvh
     from synthetic import capsule_body

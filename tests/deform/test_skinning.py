@@ -72,6 +72,7 @@ def armadillo_rig(data_dir):
     return mesh, kinetre.build_graph(mesh, nodes=256, seed=0)
 
 
+@pytest.mark.slow
 def test_table_agrees_with_float64_path_on_a_real_mesh(armadillo_rig):
     mesh, graph = armadillo_rig
     m = _random_pose(graph.node_count, 3).node_matrices(graph.nodes)
@@ -135,6 +136,7 @@ def test_table_writes_into_out_and_checks_it(body, body_graph):
         SkinTable.prepare(body.vertices, body_graph.vertex_nodes, body_graph.vertex_weights, 3)
 
 
+@pytest.mark.slow
 def test_table_with_more_nodes_than_uint16_holds():
     rng = np.random.default_rng(9)
     n = 70_000

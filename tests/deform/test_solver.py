@@ -131,6 +131,7 @@ def test_unconstrained_leg_stays_rigid_only_with_rigidity_term():
     assert results[0.0] > 2 * results[1.0], results     # without E_rig it swings free (Fig. 4 f)
 
 
+@pytest.mark.slow
 def test_real_walk_converges_every_frame(data_dir):
     from kinetre.motion.bvh import load_bvh
     from synthetic import capsule_body

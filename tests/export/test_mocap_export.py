@@ -40,6 +40,7 @@ def spot():
     return mesh, kinetre.build_graph(mesh, nodes=128, seed=0)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("bvh", BVHS, ids=lambda p: p.stem)
 def test_mocap_driven_glb_is_valid_and_faithful(tmp_path, spot, bvh):
     mesh, graph = spot

@@ -69,6 +69,7 @@ def test_spot_bvh_round_trip(tmp_path, spot_take):
         assert np.abs(read[name] - truth).max() < 1e-4, name
 
 
+@pytest.mark.slow
 def test_spot_video(tmp_path, spot_take):
     mesh, graph, poses, frames = spot_take
     out = tmp_path / "spot.mp4"
@@ -89,6 +90,7 @@ def test_spot_video(tmp_path, spot_take):
     assert (video[12].max(axis=2) < 110).mean() > 0.02
 
 
+@pytest.mark.slow
 def test_scaled_take_keeps_fidelity(tmp_path, spot_take):
     """The same take in millimetres: the error scales with the mesh (no absolute epsilon inside)."""
     mesh, graph, poses, _ = spot_take

@@ -40,6 +40,7 @@ def spine_skeletons(graph, poses):
     return out
 
 
+@pytest.mark.slow
 def test_mp4_has_every_frame_at_the_take_rate_and_shows_motion(tmp_path, capsule_take):
     mesh, graph, poses, fps = capsule_take
     out = tmp_path / "take.mp4"

@@ -17,6 +17,10 @@ ANIMATE = [("RiggedFigure", "0", 2.2), ("Fox", "Walk", 5.5), ("CesiumMan", "0", 
            ("robot_quaternius", "Robot_Walking", 1.0), ("robot_quaternius", "Robot_Dance", 1.0),
            ("robot_quaternius", "Robot_Running", 1.2), ("robot_quaternius", "Robot_Death", 1.2)]
 AVATAR = [("RiggedFigure", "0", 0.5), ("CesiumMan", "0", 1.5), ("robot_quaternius", "Robot_Walking", 0.5)]
+# `make check` keeps the two small rigs (RiggedFigure, Fox) and leaves the larger ones to `make test`
+QUICK = ("RiggedFigure", "Fox")
+ANIMATE = [c if c[0] in QUICK else pytest.param(*c, marks=pytest.mark.slow) for c in ANIMATE]
+AVATAR = [c if c[0] in QUICK else pytest.param(*c, marks=pytest.mark.slow) for c in AVATAR]
 
 
 @pytest.mark.parametrize("avatar,clip,bound", ANIMATE)

@@ -23,6 +23,8 @@ from fuzz import mutate
 from fuzz import seeding as seeds
 from fuzz.harness import Worker
 
+pytestmark = pytest.mark.slow  # `make check` leaves these out: see docs/testing.md
+
 EXAMPLES = int(os.environ.get("KINETRE_FUZZ_EXAMPLES", "10"))
 LONG = os.environ.get("KINETRE_FUZZ_LONG") == "1"
 SETTINGS = settings(max_examples=EXAMPLES, derandomize=not LONG, database=None, deadline=None,

@@ -44,6 +44,7 @@ def exhaustive_weights(vertices, normals, nodes, node_normals):
     return idx, w32
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name,nodes", [("armadillo.obj", 128), ("camelhead.off", 256), ("teapot.obj", 512),
                                         ("spot.obj", 64), ("sphereWithHole.stl", 300)])
 def test_search_equals_ranking_every_node_on_real_meshes(data_dir, name, nodes):

@@ -20,6 +20,8 @@ from install.local_index import model_wheels, serve, write_index
 from install.wheelenv import build_wheel, clean_env, fresh_venv, wheel_metadata
 from kinetre.motion.models import MODELS
 
+pytestmark = pytest.mark.slow  # `make check` leaves these out: see docs/testing.md
+
 FRAMES = 6
 
 

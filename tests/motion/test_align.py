@@ -18,6 +18,7 @@ from kinetre.motion.align import fit_shapes
 from kinetre.motion.source import load_take, resample
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("mesh_name", ["spot.obj", "armadillo.obj"])
 def test_fox_walk_drives_a_mesh(data_dir, tmp_path, capsys, mesh_name):
     mesh_path, motion = data_dir / "meshes" / mesh_name, f"{data_dir / 'avatars' / 'Fox.glb'}#Walk"
@@ -73,6 +74,7 @@ def test_a_poor_match_says_so(data_dir, tmp_path, capsys):
     assert "poor match" in err and "--fit height" in err
 
 
+@pytest.mark.slow
 def test_hints_turn_and_size_the_source(data_dir):
     mesh = kinetre.load_mesh(data_dir / "meshes" / "spot.obj")
     take = load_take(f"{data_dir / 'avatars' / 'Fox.glb'}#Walk")

@@ -30,6 +30,7 @@ def video_take(data_dir):
     return capture_video(data_dir / "video" / "pose_1.mp4")
 
 
+@pytest.mark.slow
 def test_video_is_tracked_at_its_frame_rate(video_take):
     assert len(video_take) == 120 and video_take.fps == pytest.approx(30.0)
     assert video_take.model is kinetre.KINECT20
@@ -89,6 +90,7 @@ def test_image_landmarks_match_the_truth(data_dir, row, name):
     assert np.median(err) < 0.04 * h, f"{name}: median error {np.median(err):.1f} px of {h}"
 
 
+@pytest.mark.slow
 def test_photo_poses(data_dir):
     d = data_dir / "images" / "pose"
     warrior = capture_image(d / "warrior_arms_out.jpg").positions
@@ -133,6 +135,7 @@ def test_root_translation_recovers_a_known_placement():
     assert root_translation(world, image, np.arange(33) < 3, w, h, fov) is None
 
 
+@pytest.mark.slow
 def test_no_person_and_not_a_video(tmp_path):
     path = tmp_path / "empty_room.mp4"
     out = cv2.VideoWriter(str(path), cv2.VideoWriter_fourcc(*"mp4v"), 10, (160, 120))

@@ -163,6 +163,7 @@ def test_a_person_with_kinect_names_maps_to_kinect20(tmp_path):
     assert own.model.name == "gltf:person" and own.model.joints == kinetre.KINECT20.joints
 
 
+@pytest.mark.slow
 def test_joints_that_move_no_skin_are_marked_and_their_bones_carry_nothing(data_dir):
     """The robot's artist weights its chest to the hips and leaves the spine links above them unweighted: the
     bones that turn with those links are not ones its skin follows; every weighted joint's bones are."""

@@ -123,6 +123,7 @@ def _tips_to_feet(result, feet) -> np.ndarray:
     return np.linalg.norm(result.take.positions[0, TIPS][:, None] - feet[None], axis=2)
 
 
+@pytest.mark.slow
 def test_each_finger_walks_its_own_leg_of_a_five_legged_creature(creature):
     mesh, feet = creature
     take = Take(HAND21, _finger_frames(), np.ones((6, 21), bool), 10.0, "hand")
@@ -184,6 +185,7 @@ def captured(data_dir, tmp_path_factory):
     return take
 
 
+@pytest.mark.slow
 def test_a_captured_hand_possesses_a_real_mesh(captured, data_dir, tmp_path, capsys):
     capsys.readouterr()
     assert main(["info", str(captured)]) == 0

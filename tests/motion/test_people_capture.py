@@ -13,6 +13,8 @@ from kinetre.motion.capture import CaptureSettings, capture_video, photo_people
 from kinetre.motion.landmarkers import Landmarkers
 from kinetre.skeleton.mediapipe import BLENDSHAPES
 
+pytestmark = pytest.mark.slow  # `make check` leaves these out: see docs/testing.md
+
 J = kinetre.KINECT20.index
 JAW = BLENDSHAPES.index("jawOpen")
 

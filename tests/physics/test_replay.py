@@ -61,6 +61,7 @@ def test_take_transforms_round_trip(take):
     assert np.allclose(m[-1], poses[-1].node_matrices(graph.nodes), atol=1e-5)
 
 
+@pytest.mark.slow
 def test_swing_knocks_down_the_same_boxes_every_run(take):
     folder, script, *_ = take
     first, second = replay(folder, script), replay(folder, script)  # two node processes, two worlds each
@@ -74,6 +75,7 @@ def test_swing_knocks_down_the_same_boxes_every_run(take):
     assert all(r["states"] == runs[0]["states"] for r in runs)  # bit-identical worlds, not just equal counts
 
 
+@pytest.mark.slow
 def test_a_mesh_at_rest_knocks_nothing_down(take, tmp_path):
     folder, script, mesh, graph, _ = take
     still = tmp_path / "still"

@@ -17,6 +17,8 @@ from kinetre.cli import main
 from kinetre.mesh.load import load_mesh
 from kinetre.scan.subject import FLAT, principal_spread, shape_notes
 
+pytestmark = pytest.mark.slow  # `make check` leaves these out: see docs/testing.md
+
 pytest.importorskip("open3d")
 
 

@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import argparse
 
+import pytest
 import trimesh
 
 from kinetre.cli.scan import register
@@ -14,6 +15,7 @@ def _parser():
     return parser
 
 
+@pytest.mark.slow
 def test_scan_command_writes_mesh_and_summary(tiny_frames, tmp_path, capsys):
     out = tmp_path / "tiny.obj"
     args = _parser().parse_args(["scan", str(tiny_frames), "-o", str(out), "--voxel", "0.02", "--faces", "500",

@@ -56,6 +56,7 @@ def test_redwood_frames_in_a_tum_folder_report_the_range_read_at_tums_scale(tmp_
     assert float(median) < 0.4                               # a living room within 40 cm: the scale is wrong
 
 
+@pytest.mark.slow
 def test_the_wrong_scale_warns_of_a_fragment_and_the_right_one_does_not(lamp_tum, tmp_path, capsys):
     assert main(["scan", str(lamp_tum), "-o", str(tmp_path / "wrong.ply"), "--segment", "plane", "--quiet"]) == 0
     captured = capsys.readouterr()
@@ -76,6 +77,7 @@ def test_the_wrong_scale_warns_of_a_fragment_and_the_right_one_does_not(lamp_tum
     assert 50 <= max(map(int, kept)) <= 60                     # the whole 56 cm lamp
 
 
+@pytest.mark.slow
 def test_a_scene_that_vanishes_at_the_wrong_scale_is_a_clear_error(tmp_path):
     orbit = synthetic.render_orbit("lamp", 16, 320, 240, seed=4)
     folder = as_tum(orbit.write(tmp_path / "frames"))
@@ -104,6 +106,7 @@ def test_the_warning_compares_the_object_with_the_view_at_the_median_depth():
     assert size_warning(DepthReading(0, 0, 0, 0, 3, 1000, "given"), 0.01, 640, 500.0) is None
 
 
+@pytest.mark.slow
 def test_animate_takes_the_scans_options_and_says_what_it_read(lamp_tum, tmp_path, data_dir, capsys):
     walk = str(data_dir / "bvh" / "cmu_12_01_walk.bvh")
     common = ["--motion", walk, "--max-frames", "3", "--nodes", "32", "-q"]

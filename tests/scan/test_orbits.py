@@ -12,6 +12,8 @@ from kinetre.scan.surface import ScanMesh, component_count
 
 import scan_synthetic as synthetic
 
+pytestmark = pytest.mark.slow  # `make check` leaves these out: see docs/testing.md
+
 # (object, frames, width, height): the lamp at full VGA, the others at 320x240 to keep the suite short
 ORBITS = [("lamp", 40, 640, 480), ("chair", 30, 320, 240), ("figure", 30, 320, 240)]
 PLANE_BAND = 0.025  # plane removal cuts what lies within 2 voxels (1.2 cm) of the floor; compare above this

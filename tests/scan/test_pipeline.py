@@ -22,6 +22,7 @@ def _mesh(path) -> trimesh.Trimesh:
     return trimesh.load(path, force="mesh", process=False)
 
 
+@pytest.mark.slow
 def test_trajectory_error_under_2cm(spot_scene, spot_plane_scan):
     _, poses, *_ = spot_scene
     truth = np.linalg.inv(poses[0]) @ poses  # world of the scan = first camera
@@ -74,6 +75,7 @@ def test_scan_mesh_loads_and_builds_a_graph(spot_plane_scan):
     assert np.mean(normals[top, 1] > 0) > 0.8
 
 
+@pytest.mark.slow
 def test_lost_frame_is_rejected_and_never_fused(spot_scene, tmp_path):
     scene, poses, k, colors, depths, _, _ = spot_scene
     colors, depths = list(colors[:6]), list(depths[:6])
@@ -97,6 +99,7 @@ def test_lost_frame_is_rejected_and_never_fused(spot_scene, tmp_path):
     assert np.count_nonzero((wall_distance < 0.01) & (scene_distance > 0.03)) == 0
 
 
+@pytest.mark.slow
 def test_change_segmentation_isolates_the_removed_object(tmp_path):
     # two static boxes stay put: a bare floor alone cannot anchor the second sweep to the first
     scene = synthetic.spot_on_plane(clutter=True)
@@ -118,6 +121,7 @@ def test_change_segmentation_isolates_the_removed_object(tmp_path):
                                     np.zeros_like(mesh.vertices))) == 1
 
 
+@pytest.mark.slow
 def test_real_redwood_frames_reconstruct_the_room(tmp_path):
     out = tmp_path / "room.obj"
     result = scan(REDWOOD, out, voxel=0.02, progress=False)

@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
 from kinetre.scan.frames import Intrinsics
 from kinetre.scan.fuse import TSDFVolume
@@ -25,6 +26,7 @@ def test_agreement_scores_alignment():
     assert fitness > 0.9 and abs(rmse - 0.01) < 1e-6
 
 
+@pytest.mark.slow
 def test_tracking_recovers_the_pose_and_rejects_a_foreign_frame(spot_scene):
     _, poses, k, colors, depths, _, _ = spot_scene
     camera = _camera(k, depths[0])

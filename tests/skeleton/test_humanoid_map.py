@@ -474,6 +474,7 @@ def test_a_mixamo_walk_without_a_neck_maps(neckless_walk):
     assert "HandLeft" in hmap.derived and "Spine" in hmap.derived
 
 
+@pytest.mark.slow
 def test_a_mixamo_walk_without_a_neck_drives_an_avatar(neckless_walk, tmp_path, capsys, data_dir):
     from kinetre.cli import main
     from kinetre.motion.bvh import load_bvh
@@ -507,6 +508,7 @@ def test_docstring_examples():
         assert result.attempted > 0 and result.failed == 0, module.__name__
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name", ["RiggedFigure.glb", "robot_quaternius.glb", "CesiumMan.glb"])
 def test_an_avatar_and_its_own_animations_map_alike(data_dir, name):
     """One skeleton, one map: the avatar's bone map and the map its animations are read by agree."""

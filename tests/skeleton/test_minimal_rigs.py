@@ -112,6 +112,7 @@ def test_minimal_rigs_are_driven_by_their_own_walk(rig_files, name, most, tmp_pa
     assert got["beats_still"] and got["mean_pct"] < most, got
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name, most", [("seven", 1.5), ("chibi", 1.5)])
 def test_animate_possesses_a_minimal_rig_where_it_stands(rig_files, name, most, tmp_path):
     clip = Clip(rig_files[name], 0, 8)
@@ -123,6 +124,7 @@ def test_animate_possesses_a_minimal_rig_where_it_stands(rig_files, name, most, 
     assert got["beats_still"] and got["mean_pct"] < most, got
 
 
+@pytest.mark.slow
 def test_many_legs_walk_where_they_stand_with_nodes_of_their_own(rig_files, tmp_path):
     """An eight-legged creature's body, posed at the first frame of its own walk and driven by it: the graph
     gets PER_BONE nodes per bone by default (each thin leg some of its own), which follows the walk within

@@ -32,6 +32,7 @@ def lose(frame: Skeleton, joints) -> Skeleton:
     return Skeleton(frame.model, pos, tracked)
 
 
+@pytest.mark.slow
 def test_stacked_targets_equal_each_attachments(two_models):
     graph, a, b = two_models
     rig = kinetre.attach(graph, [a[0], b[0]])

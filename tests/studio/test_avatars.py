@@ -83,6 +83,7 @@ def test_too_little_is_reported_then_completed_by_the_editor(client, data_dir, t
     assert r.status_code == 400 and "'Elbow' is not a Kinect-20 joint" in r.json()["error"]
 
 
+@pytest.mark.slow
 def test_page_frames_come_back_as_a_take(client, data_dir, walk):
     body = upload(client, data_dir / "avatars" / "robot_quaternius.glb").json()
     frames = walk[:12]

@@ -35,6 +35,7 @@ def decoded(recogniser, speech, texts):
             for (text, verb, subset), wav in zip(items, wavs) if text in texts]
 
 
+@pytest.mark.slow
 def test_every_command_in_both_festival_voices(recogniser, speech):
     texts = {t for t, _, _ in command_texts(kinetre.subset_names())}
     results = decoded(recogniser, speech, texts)
@@ -56,6 +57,7 @@ def test_synonyms_attach_and_let_go(recogniser, speech):
         assert c is not None and (c.verb, c.subset, c.text) == (verb, subset, t), (v, t, c)
 
 
+@pytest.mark.slow
 def test_out_of_grammar_speech_is_rarely_a_command(recogniser, speech):
     results = decoded(recogniser, speech, set(OUT_OF_GRAMMAR))
     assert len(results) == 2 * len(OUT_OF_GRAMMAR)
@@ -64,6 +66,7 @@ def test_out_of_grammar_speech_is_rarely_a_command(recogniser, speech):
     assert len(accepted) <= 2, accepted
 
 
+@pytest.mark.slow
 def test_silence_and_noise_are_not_commands(recogniser):
     rng = np.random.default_rng(0)
     second = 16000

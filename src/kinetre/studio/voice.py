@@ -238,6 +238,6 @@ class Recogniser:
 def recognise(audio: bytes | np.ndarray, sample_rate: int = SAMPLE_RATE, *,
               recogniser: Recogniser | None = None) -> Command | None:
     """`Recogniser.recognise` as a function. Without `recogniser` a decoder is loaded for this one call
-    (~50 ms CPU, half a decode; "init_ms" in benchmarks/bench_voice.py): hold a Recogniser to recognise
+    (its cost is "init_ms" in benchmarks/bench_voice.py, about half a decode): hold a Recogniser to recognise
     many utterances."""
     return (recogniser or Recogniser()).recognise(audio, sample_rate)

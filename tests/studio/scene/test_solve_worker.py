@@ -50,6 +50,7 @@ def test_worker_solves_like_the_inline_rig(spot64, walk):
         np.testing.assert_allclose(b, a, atol=1e-9)
 
 
+@pytest.mark.slow
 def test_a_killed_worker_is_replaced_and_the_scene_reattaches(spot64, walk):
     mesh, graph = spot64
 
