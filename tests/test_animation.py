@@ -32,6 +32,7 @@ def walk(data_dir):
     return kinetre.load_take(data_dir / "bvh" / "cmu_12_01_walk.bvh").slice(0, 4)
 
 
+@pytest.mark.slow
 def test_a_mesh_stored_z_up_deforms_as_the_upright_original(spot_twice, walk):
     standing, lying = spot_twice
     settings = kinetre.AnimateSettings(nodes=48)

@@ -68,6 +68,7 @@ def test_capture_cleans_by_default_and_records_it(capsys, data_dir, tmp_path):
     assert "cleaned: smoothing and contact" in out
 
 
+@pytest.mark.slow
 def test_avatar_report_measures_its_feet(capsys, dance, data_dir, tmp_path):
     report = tmp_path / "avatar.json"
     code, out, err = run(capsys, "avatar", data_dir / "avatars" / "CesiumMan.glb", "--motion", dance,

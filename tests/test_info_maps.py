@@ -5,6 +5,7 @@ from __future__ import annotations
 import re
 
 import numpy as np
+import pytest
 
 from kinetre.cli import main
 from kinetre.motion.bvh import parse_bvh
@@ -57,6 +58,7 @@ def test_a_bvh_without_neck_and_elbows_says_what_is_derived_and_untracked(capsys
     assert "      ElbowLeft: no joint between LeftArm and LeftHand" in out
 
 
+@pytest.mark.slow
 def test_a_glb_avatar_and_its_animations(capsys, data_dir):
     out = info(capsys, str(data_dir / "avatars" / "robot_quaternius.glb") + "#Robot_Dance")
     assert "avatar: 43 skin joints; bone map: drivable by kinetre avatar, 18 of 20 joints mapped" in out

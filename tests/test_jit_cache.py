@@ -20,6 +20,7 @@ RUN = ("from kinetre._probe_kernel import kernel\nvalue = kernel(1.0)\nstats = k
        "print(value, sum(stats.cache_hits.values()), sum(stats.cache_misses.values()))")
 
 
+@pytest.mark.slow
 def test_kernel_recompiles_when_a_module_it_calls_changes(tmp_path):
     package = tmp_path / "src" / "kinetre"
     shutil.copytree(Path(kinetre.__file__).parent, package, ignore=shutil.ignore_patterns("__pycache__"))

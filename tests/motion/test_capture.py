@@ -37,6 +37,7 @@ def test_video_is_tracked_at_its_frame_rate(video_take):
     assert video_take.tracked.mean() > 0.9, f"tracked {video_take.tracked.mean():.2f} of joint-frames"
 
 
+@pytest.mark.slow
 def test_video_arms_and_legs_move(video_take):
     p = video_take.positions
     for joint, least in (("WristLeft", 0.4), ("WristRight", 0.4), ("ElbowLeft", 0.15), ("KneeLeft", 0.1),
@@ -48,6 +49,7 @@ def test_video_arms_and_legs_move(video_take):
     assert np.nanmax(p[:, J("WristLeft"), 1] - p[:, J("Head"), 1]) > 0.1
 
 
+@pytest.mark.slow
 def test_video_skeleton_is_upright_and_in_front_of_the_camera(video_take):
     p = video_take.positions
     assert np.nanmedian(p[:, J("Head"), 1] - p[:, J("AnkleLeft"), 1]) > 1.0
@@ -59,6 +61,7 @@ def test_video_skeleton_is_upright_and_in_front_of_the_camera(video_take):
     assert np.nanmedian(np.linalg.norm(np.diff(p[:, 0], axis=0), axis=1)) < 0.05
 
 
+@pytest.mark.slow
 def test_video_landmarks_match_the_movenet_reference(data_dir):
     ref = json.loads((data_dir / "video" / "pose_1.movenet_reference.json").read_text())
     cap = cv2.VideoCapture(str(data_dir / "video" / "pose_1.mp4"))

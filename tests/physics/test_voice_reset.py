@@ -4,6 +4,8 @@ import pytest
 from kinetre.studio.voice import Command, Recogniser
 from studio.fixtures_voice import VOICES, synthesise
 
+pytestmark = pytest.mark.slow  # speech synthesised by festival in a subprocess: see docs/testing.md
+
 
 @pytest.mark.parametrize("voice", sorted(VOICES))
 def test_reset_is_recognised(voice, tmp_path):

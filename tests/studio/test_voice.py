@@ -14,6 +14,8 @@ from kinetre.studio.voice import (BadAudioError, Command, Recogniser, command_se
                                   recognise)
 from studio.fixtures_voice import OUT_OF_GRAMMAR, SYNONYMS, VOICES, command_texts, synthesise
 
+pytestmark = pytest.mark.slow  # speech synthesised by festival in a subprocess: see docs/testing.md
+
 
 @pytest.fixture(scope="module")
 def recogniser():
