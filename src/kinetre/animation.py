@@ -253,7 +253,7 @@ def _standing_source(take: Take, mesh: Mesh, s: AnimateSettings) -> Take | None:
 def _weigh_in_background(graph, mesh, keep=None):
     """A future of (`graph` with `mesh`'s skinning weights, the CPU seconds they took), computed in a thread:
     the weights kernels release the GIL, so on a machine with a free core they cost no time beside the
-    attach and solve (about 0.2 s of a 3 s command on a 386k-vertex mesh). `keep`, if given, is then called
+    attach and solve. `keep`, if given, is then called
     with the weighted graph in the thread (to write it to the cache meanwhile too)."""
     from concurrent.futures import ThreadPoolExecutor
 

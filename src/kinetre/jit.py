@@ -7,7 +7,7 @@ package: it keeps the location numba would choose (NUMBA_CACHE_DIR, the package'
 user-wide cache) and adds to each kernel's source stamp one hash of every Kinetre file a kernel can depend
 on: the modules that define kernels and, transitively, the Kinetre modules they import. Any change there makes
 every kernel recompile once (numba then overwrites its stale index); a change elsewhere (the command line,
-the studio) keeps the cache. Reading the ~100 sources and hashing a third of them costs ~10 ms, once per
+the studio) keeps the cache. The sources are read and hashed once per
 process that loads kernels.
 
 Without NUMBA_CACHE_DIR the kernels are cached in the per-user cache folder (`userdirs.user_cache_dir()`,

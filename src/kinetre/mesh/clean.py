@@ -51,7 +51,7 @@ def _rounded_rows_distinct(values, scales):
 @njit(cache=True)
 def _sorted_rows_distinct(ordered, nv):
     """True if no two rows of the (F, 3) corners, each sorted ascending and below `nv`, are equal: a counting
-    sort by the first corner, then the few faces that share it compared directly (4x faster than hashing
+    sort by the first corner, then the few faces that share it compared directly (faster than hashing
     every row: the buckets are filled and read in order, the hash table at random)."""
     nf = ordered.shape[0]
     start = np.zeros(nv + 1, np.int64)

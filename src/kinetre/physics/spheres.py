@@ -62,7 +62,7 @@ def mean_edge_length(mesh: Mesh) -> float:
     """Mean length of the mesh's unique edges (an edge shared by two triangles counts once)."""
     f = mesh.faces
     edges = np.sort(np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]]).astype(np.int64), axis=1)
-    keys = np.unique(edges[:, 0] * len(mesh.vertices) + edges[:, 1])  # 1-D keys: 20x faster than axis=0
+    keys = np.unique(edges[:, 0] * len(mesh.vertices) + edges[:, 1])  # 1-D keys: np.unique's fast path (axis=0 sorts rows)
     a, b = np.divmod(keys, len(mesh.vertices))
     return float(np.linalg.norm(mesh.vertices[a] - mesh.vertices[b], axis=1).mean())
 
