@@ -94,7 +94,7 @@ async function single() {
     const meter = () => until(page, () => {
       const s = window.kinetre.state();
       const me = s.users.find((u) => u.client === s.client);
-      return me?.quality?.jitter != null
+      return me?.quality?.jitter != null && me.quality.lag_ms != null
         && { quality: me.quality, cleaning: me.cleaning, status: document.querySelector('#status').textContent };
     }, null, 60000);
     result.meter = [await meter()];

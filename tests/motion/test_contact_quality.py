@@ -222,6 +222,21 @@ def test_room_floor_and_live_meter():
     # both stand on y = 0: one floor through everyone's feet
     assert np.abs(room.floor.above(np.array([[-0.6, 0.0, -3.0], [0.6, 0.0, -3.0]]))).max() < 0.02
     fig = meter.figures()
-    assert fig["frames"] == 90  # the last 3 s
+    assert fig["frames"] == 90 and fig["fps"] == FPS  # the last 3 s
     assert fig["jitter"] < fig["jitter_tracked"] / 2 and abs(fig["lag_ms"]) <= 1000 / FPS
     assert fig["held"] > 0.9 and fig["stray_cm"] <= 1.0
+
+
+def test_a_slow_camera_still_gets_a_lag_figure():
+    """At 2 frames a second, 3 s hold 6 frames, too few to measure a lag: the meter keeps its last 12 frames,
+    and finds the one-frame delay of a motion shifted by one frame."""
+    from kinetre.motion.quality import LiveMeter
+    t = np.arange(40) / 2.0
+    raw = np.stack([np.sin(0.9 * t + k)[:, None] * np.ones(3) for k in range(4)], axis=1)  # (T, 4, 3)
+    late = np.concatenate([raw[:1], raw[:-1]])
+    meter = LiveMeter()
+    for i in range(len(t)):
+        meter.add(raw[i], late[i], t[i])
+    fig = meter.figures()
+    assert fig["frames"] == 12 and fig["fps"] == 2.0
+    assert abs(fig["lag_ms"] - 500) < 60

@@ -177,7 +177,8 @@ def take_quality(take, stance: Stance | None = None, reference=None) -> Quality:
 
 
 class LiveMeter:
-    """A user's live motion quality over the last `seconds` (the studio's meter): jitter as tracked and as
+    """A user's live motion quality over the last `seconds`, or its last `least` frames when a slow camera gives
+    fewer (the lag needs a few frames either side of a shift to be measured at all): jitter as tracked and as
     cleaned (m/s^2), the lag cleaning adds (ms), the share of frames with a foot held, and how far held feet
     stray from where they are held (95th percentile, cm).
 
@@ -187,8 +188,8 @@ class LiveMeter:
     1
     """
 
-    def __init__(self, seconds: float = 3.0):
-        self.seconds = seconds
+    def __init__(self, seconds: float = 3.0, least: int = 12):
+        self.seconds, self.least = seconds, least
         self._t: list[float] = []
         self._raw: list[np.ndarray] = []
         self._clean: list[np.ndarray] = []
@@ -205,13 +206,13 @@ class LiveMeter:
         on = np.zeros(0, bool) if held is None else np.asarray(held, bool)
         self._held.append(bool(on.any()))
         self._stray.append(float(np.max(np.asarray(stray)[on])) if on.any() and stray is not None else np.nan)
-        while self._t and self._t[0] < t - self.seconds:
+        while len(self._t) > self.least and self._t[0] < t - self.seconds:
             for buf in (self._t, self._raw, self._clean, self._held, self._stray):
                 del buf[0]
 
     def figures(self) -> dict:
         n = len(self._t)
-        out = {"frames": n, "jitter_tracked": None, "jitter": None, "lag_ms": None, "held": None, "stray_cm": None}
+        out = {"frames": n, "fps": None, "jitter_tracked": None, "jitter": None, "lag_ms": None, "held": None, "stray_cm": None}
         if n < 4:
             return out
         dt = np.diff(self._t)
@@ -220,7 +221,7 @@ class LiveMeter:
         mean = lambda a: round(float(np.nanmean(a)), 2) if np.isfinite(a).any() else None  # noqa: E731
         stray = np.array(self._stray)
         lag = lag_ms(clean, raw, fps, most=0.25) if n >= 8 else float("nan")
-        out.update(jitter_tracked=mean(jitter(raw, fps)), jitter=mean(jitter(clean, fps)),
+        out.update(fps=round(fps, 2), jitter_tracked=mean(jitter(raw, fps)), jitter=mean(jitter(clean, fps)),
                    lag_ms=round(lag, 1) if np.isfinite(lag) else None, held=round(float(np.mean(self._held)), 3),
                    stray_cm=round(100 * float(np.percentile(stray[np.isfinite(stray)], 95)), 2)
                    if np.isfinite(stray).any() else None)

@@ -3,6 +3,7 @@
 // held on the floor, how far held feet stray, and the lag cleaning adds.
 export interface MotionQuality {
   frames: number;
+  fps: number | null; // the rate the frames came at
   jitter_tracked: number | null; // m/s², as tracked
   jitter: number | null; // m/s², as cleaned
   lag_ms: number | null;
