@@ -1,6 +1,7 @@
 """Tracking in the page: Debian's Chromium (SwiftShader, no GPU) with a video as its camera, MediaPipe Tasks
 in the page's worker, the mesh possessed; one person (pose_1) and two people (two_people_pose_1, as the
-front and back legs of Spot through examples/maps/two-people-horse.json).
+front and back legs of Spot through examples/maps/two-people-horse.json), the two seen by a 480x360 camera (the
+middle of the clip) and by a wide 640x360 one (the whole clip, whose squares are searched as well).
 
 Prints JSON lines {"bench": "tracking_page", "people": N, ...}:
   detections_per_s    landmark results the worker delivered per second (pose, hands and face)
@@ -35,6 +36,13 @@ from studio.conftest import start_server  # noqa: E402
 SECONDS = 15
 
 
+def size(video: Path) -> str:
+    """A .y4m's frame size, "WxH", from its header ("YUV4MPEG2 W480 H360 ...")."""
+    with video.open("rb") as f:
+        fields = f.readline().split()
+    return "x".join(next(v[1:].decode() for v in fields if v[:1] == k) for k in (b"W", b"H"))
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--query", default="?noshadows", help="the studio page's query string")
@@ -45,8 +53,10 @@ def main() -> None:
         print(json.dumps({"bench": "tracking_page", "error": "the page is not built: make web"}))
         return
     with tempfile.TemporaryDirectory(prefix="kinetre-bench-") as folder:
+        two = (VIDEO / "two_people_pose_1_640x360.mp4").resolve()
         cameras = [(1, (VIDEO / "pose_1_320x240_30fps.y4m").resolve()),
-                   (2, y4m((VIDEO / "two_people_pose_1_640x360.mp4").resolve(), Path(folder) / "two.y4m"))]
+                   (2, y4m(two, Path(folder) / "two_480x360.y4m", width=480)),
+                   (2, y4m(two, Path(folder) / "two_640x360.y4m"))]
         proc, url = start_server(nodes=128, sample_motion=False, timeout=600)  # slow to start on a busy machine
         try:
             for people, video in [(n, v) for n, v in cameras if n in wanted]:
@@ -57,7 +67,9 @@ def main() -> None:
                                                      "video": str(video), "people": people, "seconds": SECONDS,
                                                      "artifacts": str(ROOT / "tests" / "e2e" / "artifacts")}, 300)
                 p = r["perf"]
-                print(json.dumps({"bench": "tracking_page", "people": people, "camera": video.name, "query": query,
+                view = size(video)
+                print(json.dumps({"bench": "tracking_page", "people": people, "view": view, "camera": video.name,
+                                  "query": query,
                                   "delegate": p["delegate"], "seconds": SECONDS, "possessing": r["possessing"],
                                   "detections_per_s": round(p["detectionsPerSecond"], 2),
                                   "render_fps": round(p["renderFps"], 1),
