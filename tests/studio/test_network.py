@@ -21,7 +21,7 @@ from studio.conftest import start_server
 from studio.fixtures_horse import horse_obj
 from studio.nats_server import ROOMS, NatsServer
 from studio.studio_ws import StudioClient, frame_message
-from studio.test_multimesh import moved, wait_job
+from studio.scene.test_meshes import moved, wait_job
 
 from kinetre.cli import main
 from kinetre.studio.channels import Frame, Hub
