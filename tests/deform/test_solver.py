@@ -264,6 +264,18 @@ def test_coordinate_solve_inverts_the_shifted_k(armadillo, backend):
         assert np.abs(hz - h_out).max() < 1e-9 * np.abs(h_out).max(), kind
 
 
+def test_lower_inverse_inverts_stacked_triangular_blocks():
+    from kinetre.deform.fast.coordinate_split import lower_inverse
+
+    l2 = np.array([[2.0, 0.0], [3.0, 4.0]])  # by hand: [[1/2, 0], [-3/8, 1/4]]
+    np.testing.assert_allclose(lower_inverse(l2[None])[0], [[0.5, 0.0], [-0.375, 0.25]], rtol=0, atol=1e-15)
+    rng = np.random.default_rng(3)
+    lower = np.tril(rng.normal(size=(50, 4, 4))) + 3.0 * np.eye(4)
+    inverse = lower_inverse(lower)
+    np.testing.assert_allclose(lower @ inverse, np.broadcast_to(np.eye(4), lower.shape), rtol=0, atol=1e-13)
+    assert np.all(np.triu(inverse, 1) == 0.0)  # lower triangular, exactly
+
+
 def test_fused_energy_and_gradient_match_the_sparse_forms(armadillo):
     from kinetre.deform.fast.energy import energy_gradient
     from kinetre.deform.fast.hessian import to_coordinate_layout

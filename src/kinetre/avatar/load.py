@@ -21,6 +21,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..affine import affine_inverse
 from ..errors import BadAvatarError
 from ..gltf_read import GltfDocument, read_gltf
 from ..rotation import quaternion_matrices
@@ -179,7 +180,7 @@ def _build(reader: GltfDocument) -> Avatar:
     order = _topological(parents)
     world = _world(local, parents, order)
     mesh_node = next(i for i in skinned if nodes[i].skin == skin_index)
-    bind = world[mesh_node] @ np.linalg.inv(ibm)                   # B_k = M · IBM_k⁻¹
+    bind = world[mesh_node] @ affine_inverse(ibm)                  # B_k = M · IBM_k⁻¹
     size = max(float(np.ptp(bind[:, :3, 3], axis=0).max()), 1e-9)
     if np.abs(world[joints] - bind).max() > 1e-4 * size:
         # the nodes' rest pose is not the bind pose: rebuild the joints' locals from B_k, parents first
@@ -187,7 +188,7 @@ def _build(reader: GltfDocument) -> Avatar:
         for i in order:
             if i in is_joint:
                 p = parents[i]
-                local[i] = bind[is_joint[i]] if p < 0 else np.linalg.inv(world[p]) @ bind[is_joint[i]]
+                local[i] = bind[is_joint[i]] if p < 0 else affine_inverse(world[p]) @ bind[is_joint[i]]
             world[i] = local[i] if parents[i] < 0 else world[parents[i]] @ local[i]
 
     joint_of = {int(n): k for k, n in enumerate(joints)}

@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..affine import affine_inverse
 from ..motion.gltf import node_names
 from ..motion.take import Take
 from .load import Avatar
@@ -82,13 +83,13 @@ def _play(avatar: Avatar, source: Take, found: np.ndarray) -> AvatarMotion:
             world[:, n, :3, 3] = source.positions[:, k]
             moved[n] = True
         elif parent >= 0 and moved[parent]:  # carried rigidly by its parent
-            world[:, n] = world[:, parent] @ (np.linalg.inv(avatar.rest_world[parent]) @ avatar.rest_world[n])
+            world[:, n] = world[:, parent] @ (affine_inverse(avatar.rest_world[parent]) @ avatar.rest_world[n])
             moved[n] = True
     local = world.copy()
     for n in range(nodes):
         parent = avatar.node_parents[n]
         if parent >= 0:
-            local[:, n] = np.linalg.inv(world[:, parent]) @ world[:, n]
+            local[:, n] = affine_inverse(world[:, parent]) @ world[:, n]
     joints = avatar.joints
     rotations = world[:, joints, :3, :3] @ np.linalg.inv(avatar.rest_world[joints, :3, :3])
     return AvatarMotion(world[:, joints], local[:, joints], _polar(rotations))

@@ -31,6 +31,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..affine import affine_inverse
 from ..jit import njit
 from ..rotation import minimal_rotation_into, minimal_rotations
 from ..skeleton.models import KINECT20
@@ -546,7 +547,7 @@ def retarget_fingers(avatar: Avatar, plan: RetargetPlan, fingers, motion: Avatar
         if moved[j] or (rp >= 0 and moved[rp]):   # a joint whose glTF parent moved gets a new local matrix too
             above = np.broadcast_to(plan.fixed_parent[j], (t_count, 4, 4)) if rp < 0 else \
                 world[:, rp] @ plan.fixed_parent[j]
-            local[:, j] = np.linalg.solve(above, world[:, j])
+            local[:, j] = affine_inverse(above) @ world[:, j]
     return AvatarMotion(world, local, rot)
 
 
