@@ -292,7 +292,7 @@ class SlowSolver:
     def newer_frame(self):
         pass
 
-    async def solve(self, skeletons):
+    async def solve(self, skeletons, overdue=False):
         from kinetre.deform.pose import GraphPose
         self.solved.append([round(float(s.positions[0, 0]), 3) for s in skeletons])
         await asyncio.sleep(self.seconds)

@@ -195,10 +195,13 @@ class SolveLoops:
             loop = asyncio.get_running_loop()
             if m.unpublished is not None:
                 loop.call_soon(publisher.flush, m)  # runs once the solve's request is out
-            timer = None if late is None or arrived is None else \
-                loop.call_later(max(arrived + late - time.monotonic(), 0.0), m.solver.newer_frame)
+            # a frame already overdue yields after its first step whenever the event loop next runs: say so with
+            # the request, not from a timer that may fire only after the whole solve on a busy machine
+            due = None if late is None or arrived is None else arrived + late - time.monotonic()
+            overdue = due is not None and due <= 0.0
+            timer = loop.call_later(due, m.solver.newer_frame) if due is not None and not overdue else None
             try:
-                pose = await m.solver.solve(frames if len(frames) > 1 else frames[0])
+                pose = await m.solver.solve(frames if len(frames) > 1 else frames[0], overdue)
             except SolverLost:
                 m.rig = None  # the worker died: re-attach everybody at their current pose
                 loop.create_task(self.rebuild(m))

@@ -51,8 +51,10 @@ class InlineSolver:
         """A newer frame waits: a long solve yields to it (see `yielding`)."""
         self._newer[0] = 1
 
-    async def solve(self, skeletons) -> GraphPose:
-        self._newer[0] = 0
+    async def solve(self, skeletons, overdue: bool = False) -> GraphPose:
+        """A pose for `skeletons`; `overdue`: the frame is late already, so the solve yields after its first
+        step (see `yielding`), as it does when `newer_frame` is called while it runs."""
+        self._newer[0] = int(overdue)
 
         def timed():
             start = time.thread_time()
@@ -229,9 +231,10 @@ class SolveWorker:
         if self._newer is not None:
             self._newer.value = 1
 
-    async def solve(self, skeletons) -> GraphPose:
+    async def solve(self, skeletons, overdue: bool = False) -> GraphPose:
+        """See `InlineSolver.solve`."""
         if self._newer is not None:
-            self._newer.value = 0  # frames that arrive from now on are newer than these
+            self._newer.value = int(overdue)  # else frames that arrive from now on are newer than these
         return await self._call("solve", skeletons)
 
     def detach(self) -> None:
