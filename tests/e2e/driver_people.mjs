@@ -61,7 +61,8 @@ const legVertices = (page) => page.evaluate(() => {
 
 /** How much each group of vertices moves over `count` solved poses at least 300 ms apart (a loaded machine
  * solves fewer a second: the window stretches rather than seeing the same pose again): the mean over its
- * vertices of their RMS distance (metres) from their mean position. */
+ * vertices of their RMS distance (metres) from their mean position; and the poses themselves
+ * ([sample][group][vertex] = xyz, millimetres), for measures the test makes of them. */
 async function motion(page, groups, count = 10) {
   const samples = [];
   const id = await page.evaluate(() => window.kinetre.state().meshId);
@@ -73,7 +74,7 @@ async function motion(page, groups, count = 10) {
     }
     samples.push(await page.evaluate((g) => g.map((ids) => window.kinetre.studio.selectedMesh.skinnedPositions(ids)), groups));
   }
-  return groups.map((ids, g) => {
+  const figures = groups.map((ids, g) => {
     let total = 0;
     for (let v = 0; v < ids.length; v++) {
       const mean = [0, 1, 2].map((k) => samples.reduce((sum, s) => sum + s[g][v][k], 0) / count);
@@ -81,6 +82,7 @@ async function motion(page, groups, count = 10) {
     }
     return total / ids.length;
   });
+  return [figures, samples.map((s) => s.map((group) => group.map((xyz) => xyz.map((x) => Math.round(1000 * x)))))];
 }
 
 /** Hold one person's input still: every frame the page sends for the main person (its own channel) or for
@@ -193,6 +195,7 @@ async function horse() {
     result.legVertices = [legs.front.length, legs.back.length];
     result.mainPerson = s.mainPerson;
     result.legMotion = {};
+    result.legSamples = {};
     const main = () => page.evaluate(() => window.kinetre.studio.capture.people.main);
     for (const who of ['none', 'main', 'others']) {
       // the map gives the front legs to the page's own channel: measure again if another person took it
@@ -200,7 +203,7 @@ async function horse() {
         await freeze(page, who);
         await shownSince(page, await pageNow(page)); // the poses shown from here on are from frames sent since
         const before = await main();
-        result.legMotion[who] = await motion(page, [legs.front, legs.back]);
+        [result.legMotion[who], result.legSamples[who]] = await motion(page, [legs.front, legs.back]);
         const after = await main();
         log('leg motion', { held: who, frontBack: result.legMotion[who], main: [before, after] });
         if (before === after) break;

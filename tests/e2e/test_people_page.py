@@ -62,18 +62,33 @@ def test_two_people_in_one_camera_carry_the_two_halves_of_one_mesh(two_people, t
     assert sum(p["attached"] for p in people) >= 1, people
     assert people[0]["user"] != people[1]["user"]  # two users on the server, one per person
     # each pair of legs follows its own person: the front legs the page's own user (the map's first source),
-    # the back legs the other one. Metres each group of leg vertices moves (RMS about its mean, over 10 solved poses):
-    # with both people moving, then with the first one's input held still, then the second one's.
-    # One graph carries both halves, so a held half is still dragged through the body by the moving one: by up
-    # to a quarter of its motion (the solve run to convergence on this clip, possessed at any of 40 moments,
-    # either person in front), a third in the browser on a sparser graph. A half that followed the wrong person,
-    # or both, would move as much as the other.
-    front, back = r["legMotion"]["none"]
+    # the back legs the other one. Measured with both people moving, then with the first one's input held still,
+    # then the second one's, over 10 solved poses each.
+    front, back = r["legMotion"]["none"]  # metres each group of leg vertices moves (RMS about its mean)
     assert front > 0.01 and back > 0.01, r["legMotion"]
-    front_a_held, back_a_held = r["legMotion"]["main"]
-    front_b_held, back_b_held = r["legMotion"]["others"]
-    assert back_a_held > 0.01 and front_a_held < 0.5 * back_a_held, r["legMotion"]
-    assert front_b_held > 0.01 and back_b_held < 0.5 * front_b_held, r["legMotion"]
+    # One graph carries both halves, and the map joins the two hips with a bone, so a held half is still
+    # dragged by the moving one: most runs by a twentieth of its motion, some by half, when MediaPipe's depth
+    # of a small figure swings the moving person's hips by 0.4 m towards the other half. How much a half moves
+    # also depends on what its person does in that stretch of the clip, so each half is compared with itself,
+    # in the typical pose (medians: one solved pose of a depth jump is not the rule): holding its own person
+    # stills it more than holding the other one does. A half that followed the wrong person would move several
+    # times more with its own person held (the other person's drag is a twentieth); one that followed both
+    # about as much either way.
+    moved = {who: typical_motion(r["legSamples"][who]) for who in ("main", "others")}
+    (front_a_held, back_a_held), (front_b_held, back_b_held) = moved["main"], moved["others"]
+    assert back_a_held > 0.005 and front_b_held > 0.005, moved
+    assert front_a_held < 0.75 * front_b_held and back_b_held < 0.75 * back_a_held, moved
+
+
+def typical_motion(samples: list) -> list[float]:
+    """For each group of vertices in `samples` ([pose][group][vertex] = xyz in mm): metres its vertices move in
+    a typical pose, the median over poses of their distance from their median position (mean over vertices)."""
+    poses = np.asarray(samples, float) / 1000
+    out = []
+    for g in range(poses.shape[1]):
+        group = poses[:, g]
+        out.append(float(np.median(np.linalg.norm(group - np.median(group, axis=0), axis=-1), axis=0).mean()))
+    return out
 
 
 def test_two_people_each_possess_a_mesh_of_their_own(two_people, tmp_path):
