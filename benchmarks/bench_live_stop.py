@@ -30,7 +30,7 @@ from kinetre.motion.bvh import load_bvh
 from kinetre.studio.placement import Placement, standing_mesh
 
 DATA = Path(__file__).resolve().parents[1] / ".." / "shared" / "data"
-SHARES_MS = (5.0, 2.0)
+SHARES_MS = (5.0, 3.0, 2.0)
 
 
 def live_case():

@@ -189,23 +189,39 @@ def clean_take(take: Take, settings: CleanupSettings = CleanupSettings()) -> Tak
 
 class RoomFloor:
     """One floor for everyone in a room: the stance points every user's `LiveCleaner` reports, the last
-    `history` points kept, a plane fitted to them (`fit_floor`) once there are enough."""
+    `history` points kept, a plane fitted to them (`fit_floor`) once there are enough, and the resting
+    `level` of the points above it (their 20th percentile). Both are refitted every 10 new points, not per
+    frame: with everyone's feet in the room, a per-frame fit over thousands of points would cost each
+    frame more than the rest of its cleaning."""
 
     def __init__(self, history: int = 3000):
         self.history = history
-        self._points: list[np.ndarray] = []
+        self._ring = np.empty((history, 3))
+        self._count = 0  # points added so far; the ring holds the last min(count, history)
         self.floor: Floor | None = None
+        self.level = 0.0
         self._fresh = 0
 
     def add(self, point: np.ndarray) -> None:
-        self._points.append(np.asarray(point, dtype=np.float64).copy())
-        del self._points[:-self.history]
+        self._ring[self._count % self.history] = point
+        self._count += 1
         self._fresh += 1
-        if len(self._points) >= 10 and (self.floor is None or self._fresh >= 10):
-            self.floor, self._fresh = fit_floor(np.array(self._points)), 0
+        if self._count >= 10 and (self.floor is None or self._fresh >= 10):
+            pts = self.points()
+            self.floor, self._fresh = fit_floor(pts), 0
+            self.level = resting_level(self.floor, pts)
 
     def points(self) -> np.ndarray:
-        return np.array(self._points).reshape(-1, 3)
+        """The points kept, oldest first."""
+        n = min(self._count, self.history)
+        start = self._count % self.history if self._count > self.history else 0
+        return np.roll(self._ring[:n], -start, axis=0)
+
+
+def resting_level(floor: Floor, points: np.ndarray) -> float:
+    """Where feet at rest stand above `floor`: the low end (20th percentile) of the stance points' heights
+    (a foot is seen a little above the floor while it settles, and its heel or toe below)."""
+    return float(np.percentile(floor.above(points), 20)) if len(points) else 0.0
 
 
 class LiveCleaner:
@@ -280,10 +296,15 @@ class LiveCleaner:
         known = self.floor if self.fixed_floor or self.room is None else self.room.floor
         known = known if known is not None else self.floor
         floor = known or Floor(float(np.nanmin(feet[:, 1])) if np.isfinite(feet[:, 1]).any() else 0.0)
-        pts = self.room.points() if self.room is not None and self.room.floor is not None else \
-            np.array(self._stance_pts).reshape(-1, 3)
         # the resting level: the low end of the stance points on a fitted floor (the lower foot until then)
-        level = float(np.percentile(floor.above(pts), 20)) if known is not None and len(pts) else 0.0
+        if known is None:
+            level = 0.0
+        elif self.room is not None and self.room.floor is not None and known is self.room.floor:
+            level = self.room.level
+        else:
+            pts = self.room.points() if self.room is not None and self.room.floor is not None else \
+                np.array(self._stance_pts).reshape(-1, 3)
+            level = resting_level(floor, pts)
         ramp = max(1, int(round(self.settings.blend * fps)))
         for c, j in enumerate(self.joints):
             p = pos[j]

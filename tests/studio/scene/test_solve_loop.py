@@ -202,3 +202,36 @@ def test_a_live_solve_cut_short_with_no_newer_frame_goes_on_until_the_frame_is_s
     first, last = (unpack_transforms(b)[4] for b in blocks)
     assert np.abs(first - expected).max() > 1e-3  # the first pose out was not the solve's end
     np.testing.assert_allclose(last, expected, atol=2e-4 * max(1.0, np.abs(expected - np.eye(4)).max()))
+
+
+def test_a_cut_short_solve_is_resumed_only_once_its_users_frames_are_overdue(spot64, walk):
+    """While a user's frames keep coming, the next one goes on from a cut-short pose; the same frame is solved
+    on uncut only when no newer frame came within the user's frame period (they stopped or paused)."""
+    from kinetre.studio.channels import Frame, Hub
+    from kinetre.studio.scene import Scene
+    mesh, graph = spot64
+
+    def frame(k, skeleton):
+        return Frame("kinetre.skeleton.u", k, 1000.0 * k, b"", SkeletonFrame(k, 1000.0 * k, skeleton))
+
+    async def run(period):
+        scene = Scene(Hub(), mesh, graph)
+        scene.receive(frame(1, walk[0]))
+        scene.fit("u")
+        await scene.possess("u")
+        m = scene.meshes.first
+        user = scene.users["u"]
+        user.period = period
+        m.dirty.clear()
+        scene.solves.resume_when_quiet(m)
+        await asyncio.sleep(0.2)
+        quiet = m.dirty.is_set()
+        m.dirty.clear()
+        scene.solves.resume_when_quiet(m)
+        scene.receive(frame(2, walk[1]))  # a newer frame in time: it wakes the loop itself
+        m.dirty.clear()
+        await asyncio.sleep(0.2)
+        return quiet, m.dirty.is_set()
+
+    assert asyncio.run(run(0.01)) == (True, False)  # overdue after 15 ms: resumed; a newer frame: not
+    assert asyncio.run(run(30.0)) == (False, False)  # a 30 s period: the next frame is not overdue yet

@@ -27,7 +27,7 @@ log = logging.getLogger("kinetre.studio")
 
 GATHER_S = 0.010  # longest wait for another possessing user's frame that is due (see SolveLoops.gather)
 GATHER_SLACK_S = 0.005  # how late a user's frame may be (arrival jitter) and still be waited for
-LATE_S = 0.015  # a frame this long in the scene yields after its solve's next step (see SolveLoops.solve)
+LATE_S = 0.008  # a frame this long in the scene yields after its solve's next step (see SolveLoops.solve)
 
 
 class Publisher:
@@ -122,16 +122,28 @@ class SolveLoops:
                 await self.gather(m)
                 try:
                     pose = await self.solve(m, LATE_S)
-                    # a solve cut short for lateness with no newer frame to go on with solves the same frame on
-                    # from the pose it reached (uncut: see `solve`), so a user's last frame ends solved
                     if pose is not None and getattr(m.solver, "stopped", False) and not m.dirty.is_set():
-                        m.dirty.set()
+                        self.resume_when_quiet(m)
                 except Exception as exc:  # one bad frame must not stop the scene for everybody
                     self.last_error = f"solve failed: {type(exc).__name__}: {exc}"
                     log.exception("solve failed")
         finally:
             if not self.meshes.holds(m):
                 self.close_solver(m)
+
+    def resume_when_quiet(self, m: SceneMesh) -> None:
+        """A solve was cut short and no newer frame waits: once its users' next frames are overdue (they
+        stopped sending, or paused), the same frame is solved on from the pose it reached, uncut (see
+        `solve`), so a user's last frame ends solved. While frames keep coming, the next one goes on from
+        that pose anyway: an uncut solve of a frame about to be superseded would only hold it up."""
+        users = [self.users[c] for c in m.possessors if c in self.users]
+        seqs = [u.seq for u in users]
+        wait = max((u.period for u in users if u.period), default=0.0) + GATHER_SLACK_S
+
+        def resume() -> None:
+            if self.meshes.holds(m) and not m.dirty.is_set() and [u.seq for u in users] == seqs:
+                m.dirty.set()
+        asyncio.get_running_loop().call_later(wait, resume)
 
     async def gather(self, m: SceneMesh) -> None:
         """Before solving, wait (briefly) for the mesh's other possessing users' frames that are due now.
@@ -174,7 +186,7 @@ class SolveLoops:
         The solver yields after a Gauss-Newton step (`solve_worker.yielding`) to a newer frame, or once the
         oldest frame it solves has been `late` seconds in the scene (the live loop: `LATE_S`): its pose is
         published at once and the next frame goes on from it (the live loop solves the same frame on from it,
-        without `late`, when no newer one came), instead of every viewer's picture waiting for the rest of a
+        without `late`, when no newer one came in its users' frame period: `resume_when_quiet`), instead of every viewer's picture waiting for the rest of a
         long solve. When a newer frame already waits as a solve ends, its pose is published once the next solve
         is under way: the solver then works while the transforms go out to every page, instead of waiting for
         them."""
