@@ -18,6 +18,7 @@ from ..graph.graph import DeformationGraph
 from ..mesh.mesh import Mesh
 from ..jit import njit
 from ..rotation import minimal_rotation_into
+from .carrying import carrying_bones
 from .models import Skeleton
 from .piece_bones import piece_bones
 
@@ -116,9 +117,10 @@ def attach_skeleton(graph: DeformationGraph, skeleton: Skeleton, joint_mask: np.
                     mesh: Mesh | None = None) -> SkeletonAttachment:
     """Point constraints for one skeleton at its bind pose (the pose at "possess").
 
-    With `node_bones` every graph node also follows its nearest bone (ours, for a skeleton that stands
-    where the mesh's artist put it): a constraint at the node itself, moved as a bone sample, so parts
-    beyond the bone cylinders' reach (a big head, a broad torso) are carried by their bone too.
+    With `node_bones` every graph node also follows its bone (ours, for a skeleton that stands where the
+    mesh's artist put it): a constraint at the node itself, moved as a bone sample, so parts beyond the bone
+    cylinders' reach (a big head, a broad torso) are carried by their bone too. The bone is the one the node
+    sees from inside the mesh when `mesh` is given (`carrying_bones`), else the nearest.
 
     Parameters
     ----------
@@ -127,9 +129,10 @@ def attach_skeleton(graph: DeformationGraph, skeleton: Skeleton, joint_mask: np.
     joint_mask : (J,) bool, the subset that may attach; a bone needs both of its joints
     reach : float, attachment distance (10 cm)
     bone_radius : float, bone cylinder radius (4 cm)
-    node_bones : bool, carry every node by its nearest bone as well
+    node_bones : bool, carry every node by its bone as well
     mesh : Mesh or None, the graph's mesh in the same frame: with `node_bones` a multi-part mesh's pieces
-        are told which bones run through them from their own triangles (`piece_bones`)
+        are told which bones run through them from their own triangles (`piece_bones`), and each node's bone
+        is the one it sees through the mesh's inside (`carrying_bones`)
     """
     nodes, normals = graph.nodes, graph.normals
     tree = cKDTree(nodes)
@@ -171,7 +174,9 @@ def attach_skeleton(graph: DeformationGraph, skeleton: Skeleton, joint_mask: np.
         lo, hi = nodes.min(axis=0) - reach, nodes.max(axis=0) + reach
         within = use & ((pos >= lo) & (pos <= hi)).all(axis=1)
         mask = np.broadcast_to(carries, (len(nodes), len(carries))) if allowed is None else allowed[graph.pieces]
-        for j, bi in enumerate(nearest_bones(nodes, skeleton, within, mask)):
+        carriers = nearest_bones(nodes, skeleton, within, mask) if mesh is None else \
+            carrying_bones(graph, skeleton, within, mesh, mask)
+        for j, bi in enumerate(carriers):
             if bi < 0:
                 continue
             points.append(nodes[j]), idx.append(np.full(4, j, np.int32)), wts.append(np.array([1.0, 0, 0, 0]))
