@@ -41,6 +41,73 @@ def winding_numbers(points: np.ndarray, vertices: np.ndarray, faces: np.ndarray)
     return out
 
 
+@njit(cache=True)
+def _crossings(starts, ends, vertices, faces, count, dip):
+    buffer_t = np.empty(16)
+    buffer_s = np.empty(16)
+    for i in range(starts.shape[0]):
+        sx, sy, sz = starts[i, 0], starts[i, 1], starts[i, 2]
+        dx, dy, dz = ends[i, 0] - sx, ends[i, 1] - sy, ends[i, 2] - sz
+        lox, hix = min(sx, ends[i, 0]), max(sx, ends[i, 0])
+        loy, hiy = min(sy, ends[i, 1]), max(sy, ends[i, 1])
+        loz, hiz = min(sz, ends[i, 2]), max(sz, ends[i, 2])
+        n = 0
+        for f in range(faces.shape[0]):
+            a, b, c = faces[f, 0], faces[f, 1], faces[f, 2]
+            ax, ay, az = vertices[a, 0], vertices[a, 1], vertices[a, 2]
+            bx, by, bz = vertices[b, 0], vertices[b, 1], vertices[b, 2]
+            cx, cy, cz = vertices[c, 0], vertices[c, 1], vertices[c, 2]
+            if (max(ax, max(bx, cx)) < lox or min(ax, min(bx, cx)) > hix or max(ay, max(by, cy)) < loy
+                    or min(ay, min(by, cy)) > hiy or max(az, max(bz, cz)) < loz or min(az, min(bz, cz)) > hiz):
+                continue
+            # Moller and Trumbore's ray-triangle test on the segment start + t (end - start), 0 <= t <= 1
+            e1x, e1y, e1z = bx - ax, by - ay, bz - az
+            e2x, e2y, e2z = cx - ax, cy - ay, cz - az
+            px, py, pz = dy * e2z - dz * e2y, dz * e2x - dx * e2z, dx * e2y - dy * e2x
+            det = e1x * px + e1y * py + e1z * pz
+            if det == 0.0:
+                continue
+            inv = 1.0 / det
+            tx, ty, tz = sx - ax, sy - ay, sz - az
+            u = (tx * px + ty * py + tz * pz) * inv
+            if u < 0.0 or u > 1.0:
+                continue
+            qx, qy, qz = ty * e1z - tz * e1y, tz * e1x - tx * e1z, tx * e1y - ty * e1x
+            v = (dx * qx + dy * qy + dz * qz) * inv
+            if v < 0.0 or u + v > 1.0:
+                continue
+            t = (e2x * qx + e2y * qy + e2z * qz) * inv
+            if t < 0.0 or t > 1.0:
+                continue
+            if n == buffer_t.shape[0]:
+                grown_t, grown_s = np.empty(2 * n), np.empty(2 * n)
+                grown_t[:n], grown_s[:n] = buffer_t, buffer_s
+                buffer_t, buffer_s = grown_t, grown_s
+            buffer_t[n] = t
+            # det = -(end - start) . normal: against an outward normal the segment enters the solid
+            buffer_s[n] = 1.0 if det > 0.0 else -1.0
+            n += 1
+        count[i] = n
+        lowest, running = 0.0, 0.0
+        for k in np.argsort(buffer_t[:n]):
+            running += buffer_s[k]
+            lowest = min(lowest, running)
+        dip[i] = lowest
+
+
+def segment_crossings(starts: np.ndarray, ends: np.ndarray, vertices: np.ndarray,
+                      faces: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Where the segments start→end cross the triangles `faces` of `vertices` (an outward-wound surface):
+    (P,) int how many triangles each crosses, and (P,) float the lowest the winding number falls along it
+    below its value at the start (0 or less: −1 per triangle left through, +1 per one entered, in order)."""
+    starts = np.ascontiguousarray(starts, dtype=np.float64).reshape(-1, 3)
+    ends = np.ascontiguousarray(ends, dtype=np.float64).reshape(-1, 3)
+    count, dip = np.zeros(len(starts), np.int64), np.zeros(len(starts))
+    _crossings(starts, ends, np.ascontiguousarray(vertices, dtype=np.float64),
+               np.ascontiguousarray(np.asarray(faces, dtype=np.int64).reshape(-1, 3)), count, dip)
+    return count, dip
+
+
 @njit(cache=True, inline="always")
 def _segment(px, py, pz, ax, ay, az, bx, by, bz):
     """Distance from p to the segment ab."""

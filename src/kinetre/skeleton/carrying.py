@@ -7,8 +7,8 @@ than to the spine. So, as in Baran and Popović's bone heat ("Automatic Rigging 
 Characters", SIGGRAPH 2007, §4: a vertex binds to the nearest bone it can see from inside the mesh):
 
 1. a node takes the nearest bone it can see through the inside of the mesh without crossing another surface
-   (the winding number stays one whole number along the way: from the belly, a leg bone inside the torso
-   lies behind the leg's own skin); failing that, one it reaches through the inside, crossings allowed;
+   (the way starts inside and crosses no triangle: from the belly, a leg bone inside the torso lies behind
+   the leg's own skin); failing that, one it reaches through the inside, crossings allowed;
    failing that, the nearest; a bone seen is taken only within a few times the nearest's distance (beyond,
    a seam of the surface is likelier than a hidden bone);
 2. distance past either end of a bone counts double: a node beside a joint belongs to the bone that runs
@@ -25,15 +25,15 @@ import numpy as np
 
 from ..graph.graph import DeformationGraph
 from ..mesh.mesh import Mesh
-from ..mesh.solid import winding_numbers
+from ..mesh.solid import segment_crossings, winding_numbers
 from .models import Skeleton
 
 PAST_END = 2.0  # weight of the distance along a bone beyond either of its ends
-SAMPLES = 12  # points along the way from a node to a bone tested for lying inside
 START = 0.1  # share of the way skipped next to the node (its own skin)
 FARTHEST = 3.0  # a bone seen from a node may cost at most this many times its cheapest
 OUTSIDE = 0.005  # of the mesh's longest side: how far outside its skin a node's surroundings are tested
-BUDGET = 4e8  # point-triangle pairs of winding numbers, at most (a first try beyond it: the nearest bone)
+PER_PATH = 2  # point-triangle pairs a way costs: its start's winding number, and its crossings (as cheap)
+BUDGET = 6e7  # point-triangle pairs, at most (about 2 s; a first try beyond it: the nearest bone)
 
 
 def carrying_bones(graph: DeformationGraph, skeleton: Skeleton, joint_mask: np.ndarray, mesh: Mesh,
@@ -64,7 +64,7 @@ def carrying_bones(graph: DeformationGraph, skeleton: Skeleton, joint_mask: np.n
     has = np.isfinite(cost[np.arange(len(nodes)), order[:, 0]])
     best = order[:, 0].copy()
     faces = np.asarray(mesh.faces).reshape(-1, 3)
-    if len(nodes) * (SAMPLES + 1) * len(faces) > BUDGET:  # too big a mesh to look through: the nearest bone
+    if len(nodes) * (PER_PATH + 1) * len(faces) > BUDGET:  # too big a mesh to look through: the nearest bone
         nearest = np.linalg.norm(nodes[:, None] - closest, axis=2)
         nearest = np.where(np.isfinite(cost), nearest, np.inf).argmin(axis=1)
         return np.where(has, rows[nearest], -1)
@@ -97,9 +97,8 @@ def bone_costs(points: np.ndarray, a: np.ndarray, b: np.ndarray) -> tuple[np.nda
 def _visible_bones(nodes, closest, cost, order, vertices, faces) -> np.ndarray:
     """(N,) column of `cost` per node: its cheapest bone seen without crossing a surface, else the cheapest
     reached through the inside, else the cheapest. Bones are tried cheapest first, each node's only until one
-    is seen clearly (the winding numbers are the cost), within BUDGET point-triangle pairs."""
+    is seen clearly, within BUDGET point-triangle pairs."""
     n = len(nodes)
-    t = START + (np.arange(SAMPLES) + 0.5) / SAMPLES * (1.0 - START)
     clear = np.full(n, -1)
     through = np.full(n, -1)
     pending = np.arange(n)
@@ -108,15 +107,15 @@ def _visible_bones(nodes, closest, cost, order, vertices, faces) -> np.ndarray:
         col = order[pending, k]
         live = np.isfinite(cost[pending, col]) & (cost[pending, col] <= FARTHEST * cost[pending, order[pending, 0]])
         pending, col = pending[live], col[live]
-        spent += len(pending) * SAMPLES * len(faces)
+        spent += len(pending) * PER_PATH * len(faces)
         if not len(pending) or (k and spent > BUDGET):
             break
-        p0 = nodes[pending]
-        path = p0[:, None] + t[None, :, None] * (closest[pending, col] - p0)[:, None]
-        wn = winding_numbers(path.reshape(-1, 3), vertices, faces).reshape(len(pending), SAMPLES)
-        whole = np.round(wn)
-        seen = (whole >= 1).all(axis=1) & (whole == whole[:, -1:]).all(axis=1)
-        inside = (wn > 0.5).all(axis=1)
+        start = nodes[pending] + START * (closest[pending, col] - nodes[pending])
+        # the winding number where the way starts, then its changes at each surface the way crosses
+        wn = winding_numbers(start, vertices, faces)
+        crossed, dip = segment_crossings(start, closest[pending, col], vertices, faces)
+        seen = (wn > 0.5) & (crossed == 0)
+        inside = wn + dip > 0.5
         clear[pending[seen]] = col[seen]
         first = inside & (through[pending] < 0)
         through[pending[first]] = col[first]
