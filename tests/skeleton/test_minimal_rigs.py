@@ -128,7 +128,8 @@ def test_animate_possesses_a_minimal_rig_where_it_stands(rig_files, name, most, 
 def test_many_legs_walk_where_they_stand_with_nodes_of_their_own(rig_files, tmp_path):
     """An eight-legged creature's body, posed at the first frame of its own walk and driven by it: the graph
     gets PER_BONE nodes per bone by default (each thin leg some of its own), which follows the walk within
-    1.5 % of its height where the paper's 256 nodes, two or three to a leg segment, do worse."""
+    1.5 % of its height where the paper's 256 nodes, two or three to a leg segment, hold its worst vertex
+    less closely."""
     name = "spider"
     clip = Clip(rig_files[name], 0, 8)
     mesh = clip.write_mesh(tmp_path / "body.ply")
@@ -141,4 +142,5 @@ def test_many_legs_walk_where_they_stand_with_nodes_of_their_own(rig_files, tmp_
     model = load_gltf(rig_files[name]).model
     assert graph_nodes(model) == min(MOST, PER_BONE * int(model.skinning_bones.sum())) > 256
     assert got[None]["beats_still"] and got[None]["mean_pct"] < 1.5, got
-    assert got[None]["mean_pct"] < 0.85 * got[256]["mean_pct"], got
+    # two or three nodes to a segment leave a thin leg's far vertices loosely held
+    assert got[None]["max_pct"] < 0.85 * got[256]["max_pct"], got

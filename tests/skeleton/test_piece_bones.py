@@ -134,3 +134,39 @@ def test_a_bolt_on_the_head_stays_when_the_hand_beside_it_swings_away():
     arm = pieces == pieces[np.argmin(np.linalg.norm(mesh.vertices - BIND[3], axis=1))]
     assert np.linalg.norm(moved[arm] - mesh.vertices[arm], axis=1).max() > 0.5  # the arm swung
     assert np.linalg.norm(moved[small] - mesh.vertices[small], axis=1).max() < 1e-3  # the bolt stayed
+
+
+LEGS = SkeletonModel("legs", ("body", "hip_a", "knee_a", "hip_b", "knee_b"), (-1, 0, 1, 0, 3))
+LEG_A, LEG_B = 1, 3  # rows of LEGS.bones: hip_a -> knee_a, hip_b -> knee_b
+
+
+def _capsule(a, b, radius) -> trimesh.Trimesh:
+    a, b = np.asarray(a, float), np.asarray(b, float)
+    c = trimesh.creation.capsule(height=float(np.linalg.norm(b - a)), radius=radius, count=[16, 16])
+    c.apply_transform(trimesh.geometry.align_vectors([0, 0, 1], (b - a) / np.linalg.norm(b - a)))
+    c.apply_translation(0.5 * (a + b))
+    return c
+
+
+def test_a_neighbouring_leg_swung_across_a_thin_leg_does_not_carry_it():
+    """Two thin legs side by side, one swung 35 degrees across the other in the bind pose (a many-legged walk's
+    first frame): the swung bone runs a short chord through the other's capsule, three of its nine test
+    points, and must not carry it; each leg is its own bone's."""
+    hip_a, hip_b = np.array([0.0, 0.3, 0.0]), np.array([0.0, 0.3, 0.08])
+    knee_a = hip_a + 0.27 * np.array([1.0, 0.0, 0.0])
+    swung = np.array([np.cos(0.6), 0.0, -np.sin(0.6)])
+    knee_b = hip_b + 0.27 * swung
+    pos = np.array([[-0.1, 0.3, 0.04], hip_a, knee_a, hip_b, knee_b])
+    leg_a, leg_b = _capsule(hip_a, knee_a, 0.025), _capsule(hip_b, knee_b, 0.025)
+    mesh = mesh_from_trimesh(trimesh.util.concatenate([leg_a, leg_b]), "crossed_legs")
+    graph = kinetre.build_graph(mesh, nodes=96)
+    allowed = piece_bones(graph, Skeleton(LEGS, pos, np.ones(5, bool)), np.ones(5, bool), mesh)
+    pieces = vertex_pieces(mesh.vertices, mesh.faces)
+    a = int(pieces[np.argmin(np.linalg.norm(mesh.vertices - knee_a, axis=1))])
+    b = int(pieces[np.argmin(np.linalg.norm(mesh.vertices - knee_b, axis=1))])
+    assert a != b
+    t = np.linspace(0.0, 0.27, 271)[:, None]
+    chord = np.hypot((hip_b + t * swung)[:, 1] - 0.3, (hip_b + t * swung)[:, 2]) < 0.025  # within leg a
+    assert 0.2 < chord.mean() < 0.4  # the swung bone crosses leg a for about a third of its length
+    assert allowed[a, LEG_A] and not allowed[a, LEG_B]
+    assert allowed[b, LEG_B] and not allowed[b, LEG_A]

@@ -18,6 +18,7 @@ from .models import Skeleton
 
 ALONG = 9  # points along a bone tested for lying inside a piece
 THROUGH = 2  # of them inside, for the bone to run through the piece
+SHARE = 0.5  # and at least this share of the most any bone has inside the piece
 MIN_NODES = 8  # without the mesh, a piece needs this many nodes for an inside test (fewer: any bone)
 
 
@@ -50,7 +51,10 @@ def piece_bones(graph: DeformationGraph, skeleton: Skeleton, joint_mask: np.ndar
     else:
         solid, count = None, int(pieces.max()) + 1
         inside = _inside_nodes(points, graph, pieces, count)
-    through = ok[None] & (inside.reshape(count, len(bones), ALONG).sum(axis=2) >= THROUGH)
+    # a bone that only crosses a piece (a neighbouring leg swung across it in the bind pose) runs a short
+    # chord of it, the piece's own bone most of its length
+    inside_count = np.where(ok[None], inside.reshape(count, len(bones), ALONG).sum(axis=2), 0)
+    through = inside_count >= np.maximum(THROUGH, SHARE * inside_count.max(axis=1, keepdims=True))
     has = through.any(axis=1)
     if not has.any():
         return None
