@@ -67,8 +67,7 @@ dist: $(STATIC)
 # of a mesh then loads them instead of compiling for a minute); again whenever a source changes
 kernels: $(KERNEL_STAMP)
 $(KERNEL_STAMP): $(STAMP) $(shell find src/kinetre -name '*.py' 2>/dev/null)
-	$(VENV)/bin/kinetre animate src/kinetre/data/spot.obj --motion src/kinetre/data/cmu_12_01_walk.bvh \
-	  --max-frames 8 -o $(VENV)/kernels-warm.glb -q
+	$(VENV)/bin/kinetre kernels
 	touch $@
 
 setup: python models web kernels tests/export/node/node_modules/.kinetre-installed
@@ -86,7 +85,7 @@ test: setup
 
 # the quick tier: unit and numeric tests, no browser, studio server, NATS, Blender or heavy numeric cases
 # (docs/testing.md; the marks in tests/conftest.py)
-check: python models
+check: python models kernels
 	$(PY) -m pytest -q -m "not slow" tests
 
 # Every reader and the studio's message parser on many more mutated inputs than `make test`'s fixed-seed run,

@@ -1,40 +1,49 @@
-"""numba's `njit` and `prange` for Kinetre's kernels, with an on-disk cache that goes stale with the sources.
+"""Kinetre's kernels: `njit` and `prange` as numba's, with an on-disk cache that goes stale with the sources,
+and numba itself loaded only when a kernel has no ahead-of-time compiled twin.
 
 numba keys a cached kernel on its own file only. A kernel that calls or inlines a kernel of another module
 (or freezes a constant imported from one) would run the old machine code after that other file changed,
-e.g. after an upgrade in place. Importing `njit` from here registers a cache locator for the files of this
+e.g. after an upgrade in place. Loading numba from here registers a cache locator for the files of this
 package: it keeps the location numba would choose (NUMBA_CACHE_DIR, the package's __pycache__, or the
 user-wide cache) and adds to each kernel's source stamp one hash of every Kinetre file a kernel can depend
 on: the modules that define kernels and, transitively, the Kinetre modules they import. Any change there makes
 every kernel recompile once (numba then overwrites its stale index); a change elsewhere (the command line,
-the studio) keeps the cache. The sources are read and hashed once per
-process that loads kernels.
+the studio) keeps the cache. The sources are read and hashed once per process that loads kernels.
 
 Without NUMBA_CACHE_DIR the kernels are cached in the per-user cache folder (`userdirs.user_cache_dir()`,
 `numba` in it), not beside the sources: an installed package's folder is often read-only, and numba's own
 fallback then would be a folder shared with every other numba program. So a kernel compiles once per user and
 Kinetre version, not in every run.
+
+Even from its cache, numba costs a command about 0.3 s before the first kernel runs (its import, its typing
+tables, each kernel's machine code linked in). So `kinetre kernels` (run by `make setup`) also compiles the
+signatures a run uses ahead of time, with numba's AOT compiler, into one extension module in the same folder
+(`compiled.py`), stamped like the cache. Until numba is needed, `njit` gives a `Kernel`: a call whose argument
+types match a compiled signature runs that; any other call loads numba, after which every kernel is numba's
+own dispatcher (swapped into the modules that hold it, so kernels calling kernels compile as before).
 """
 from __future__ import annotations
 
 import contextlib
 import functools
 import hashlib
+import importlib.util
+import json
 import os
 import re
+import sys
+import threading
 from pathlib import Path
 
-from numba import njit, prange
-from numba.core import caching, config, event
-from numba.core.compiler_lock import global_compiler_lock
+import numpy as np
 
 from .compile_notice import compiling
 from .userdirs import user_cache_dir
 
-__all__ = ["njit", "prange", "slp_vectorizer", "sources_stamp", "kernel_cache_dir"]
+__all__ = ["njit", "intrinsic", "prange", "Kernel", "load_numba", "slp_vectorizer", "sources_stamp",
+           "kernel_cache_dir", "compiled_dir", "signature_key", "COMPILED_TABLE"]
 
 PACKAGE = Path(__file__).resolve().parent
-_IMPL = getattr(caching, "CacheImpl", None) or caching._CacheImpl  # numba < 0.60: _CacheImpl
 
 # `from .a.b import c`, `from .. import (x, y as z)` and `import kinetre.a.b`, at any indentation
 _IMPORT = re.compile(rb"^[ \t]*(?:from[ \t]+(\.+)([\w.]*)[ \t]+import[ \t]+(?:\(([^)]*)\)|([\w ,\t]+))"
@@ -51,6 +60,9 @@ def slp_vectorizer():
     compilations made here. Call a kernel inside only for its first call per signature (the lock
     serialises every compilation in the process); the kernel's tests check its results.
     """
+    load_numba()
+    from numba.core import config
+    from numba.core.compiler_lock import global_compiler_lock
     with global_compiler_lock:
         before = config.SLP_VECTORIZE
         config.SLP_VECTORIZE = 1
@@ -112,70 +124,282 @@ def _inside(path: str, package: Path = PACKAGE) -> bool:
 
 def kernel_cache_dir() -> Path:
     """Where Kinetre's compiled kernels are kept: NUMBA_CACHE_DIR when set, else the per-user cache folder."""
-    return Path(config.CACHE_DIR) if config.CACHE_DIR else user_cache_dir() / "numba"
+    folder = os.environ.get("NUMBA_CACHE_DIR")  # what numba's config reads at its import
+    return Path(folder) if folder else user_cache_dir() / "numba"
 
 
-class UserCacheLocator(caching._SourceFileBackedLocatorMixin, caching._CacheLocator):
-    """numba's locator for NUMBA_CACHE_DIR, with `kernel_cache_dir()` in its place."""
+# ---------------------------------------------------------------------------------------------------------
+# Kernels before numba: the ahead-of-time compiled twins, else numba's dispatcher
 
-    def __init__(self, py_func, py_file):
-        self._py_file = py_file
-        self._lineno = py_func.__code__.co_firstlineno
-        self._cache_path = os.path.join(kernel_cache_dir(), self.get_suitable_cache_subpath(py_file))
-
-    def get_cache_path(self):
-        return self._cache_path
+COMPILED_MODULE = "kinetre_compiled_kernels"
+COMPILED_TABLE = "kernels.json"  # beside the module: its file and, per exported symbol, kernel and signature
+_LOCK = threading.RLock()
+_STATE: dict = {"numba": None, "compiled": None}
+_MADE: list = []  # Kernels and intrinsics made before numba was loaded
 
 
-class SourceSetLocator(caching._CacheLocator):
-    """numba's own choice of cache locator for a Kinetre kernel, with `sources_stamp()` in its stamp."""
+def compiled_dir() -> Path:
+    """The folder of the compiled kernels for these sources, this numpy and this Python (the module links
+    against both); `kinetre kernels` writes it, and a stale one is never read (its name would differ)."""
+    digest = hashlib.blake2b(digest_size=10)
+    for part in (sources_stamp(), np.__version__, sys.version, sys.platform):
+        digest.update(part.encode() + b"\0")
+    return kernel_cache_dir() / "compiled" / digest.hexdigest()
 
-    def __init__(self, inner: caching._CacheLocator):
-        self._inner = inner
 
-    def ensure_cache_path(self):
-        self._inner.ensure_cache_path()
-
-    def get_cache_path(self):
-        return self._inner.get_cache_path()
-
-    def get_source_stamp(self):
-        return self._inner.get_source_stamp(), sources_stamp()
-
-    def get_disambiguator(self):
-        return self._inner.get_disambiguator()
-
-    @classmethod
-    def from_function(cls, py_func, py_file):
-        if not _inside(py_file):
+def signature_key(args: tuple) -> tuple | None:
+    """The argument types of a call as numba would type them (`compiled.type_key` writes the same keys
+    from numba's types), or None for an argument the compiled kernels do not take."""
+    keys = []
+    for value in args:
+        key = _value_key(value)
+        if key is None:
             return None
-        if not config.CACHE_DIR:
-            inner = UserCacheLocator.from_function(py_func, py_file)  # None when the folder cannot be made
-            if inner is not None:
-                return cls(inner)
-        for other in _IMPL._locator_classes:
-            if other is not cls:
-                inner = other.from_function(py_func, py_file)
+        keys.append(key)
+    return tuple(keys)
+
+
+def _value_key(value):
+    kind = type(value)
+    if kind is float:
+        return "float64"
+    if kind is bool:
+        return "bool"
+    if kind is int:
+        return "int64" if -2 ** 63 <= value < 2 ** 63 else None
+    if isinstance(value, np.ndarray):
+        dtype, flags = value.dtype, value.flags
+        if dtype.kind not in "biufc" or not dtype.isnative or isinstance(value, np.ma.MaskedArray):
+            return None
+        layout = "C" if flags.c_contiguous else "F" if flags.f_contiguous else "A"
+        return ("array", dtype.name, value.ndim, layout, not flags.writeable)
+    if kind is tuple:
+        keys = tuple(_value_key(v) for v in value)
+        return None if None in keys else ("tuple",) + keys
+    if value is None:
+        return "none"
+    if isinstance(value, np.generic) and value.dtype.kind in "biufc":
+        return value.dtype.name
+    return None
+
+
+def _as_key(item):
+    """A key as read back from JSON (lists) → the tuples `signature_key` makes."""
+    return tuple(_as_key(x) for x in item) if isinstance(item, list) else item
+
+
+def _compiled_kernels() -> dict:
+    """{(module, qualname): {signature key: compiled function}} from `compiled_dir()`, {} when there is none
+    (or it cannot be loaded: then every call goes to numba, as without it)."""
+    with _LOCK:
+        table = _STATE["compiled"]
+        if table is None:
+            table = _STATE["compiled"] = _load_compiled(compiled_dir())
+        return table
+
+
+def _load_compiled(folder: Path) -> dict:
+    try:
+        listing = json.loads((folder / COMPILED_TABLE).read_text())
+        spec = importlib.util.spec_from_file_location(COMPILED_MODULE, folder / listing["file"])
+        module = importlib.util.module_from_spec(spec)
+        spec.loader.exec_module(module)
+        table: dict = {}
+        for module_name, qualname, key, symbol in listing["kernels"]:
+            table.setdefault((module_name, qualname), {})[_as_key(key)] = getattr(module, symbol)
+        return table
+    except (OSError, ValueError, KeyError, TypeError, ImportError, AttributeError):
+        return {}
+
+
+class Kernel:
+    """`njit`'s kernel until numba is loaded: a call runs the compiled twin of its argument types, if
+    `kinetre kernels` made one, else numba's dispatcher (made on first need; that loads numba). Attributes
+    other than these are the dispatcher's (`stats`, `signatures`, ...)."""
+
+    def __init__(self, py_func, options: dict):
+        self._dispatcher = None
+        self._twins = None
+        self.py_func, self.options = py_func, options
+        functools.update_wrapper(self, py_func)
+
+    def __call__(self, *args, **kwargs):
+        twins = self._twins
+        if twins is None:
+            twins = self._twins = _compiled_kernels().get((self.py_func.__module__, self.py_func.__qualname__), {})
+        if twins and not kwargs:
+            twin = twins.get(signature_key(args))
+            if twin is not None:
+                return twin(*args)
+        return self.dispatcher(*args, **kwargs)
+
+    @property
+    def dispatcher(self):
+        """numba's dispatcher for this kernel (loads numba)."""
+        if self._dispatcher is None:
+            load_numba()
+        return self._dispatcher
+
+    def realise(self, numba) -> None:
+        self._dispatcher = numba.njit(**self.options)(self.py_func)
+
+    @property
+    def real(self):
+        return self._dispatcher
+
+    def __getattr__(self, name):
+        if name.startswith("__") or name in ("_dispatcher", "_twins"):
+            raise AttributeError(name)
+        return getattr(self.dispatcher, name)
+
+    def __repr__(self):
+        return f"<kinetre kernel {self.py_func.__module__}.{self.py_func.__qualname__}>"
+
+
+class Intrinsic:
+    """`intrinsic`'s object until numba is loaded: numba's `intrinsic` of the same definition after."""
+
+    def __init__(self, definition):
+        self.definition, self.real = definition, None
+        functools.update_wrapper(self, definition)
+
+    def realise(self, numba) -> None:
+        from numba.extending import intrinsic as numba_intrinsic
+        self.real = numba_intrinsic(self.definition)
+
+    def __call__(self, *args):
+        raise TypeError(f"{self.definition.__qualname__} is an intrinsic: it can be called inside a kernel only")
+
+
+def njit(*args, **options):
+    """numba's `njit` (options only, as `@njit` or `@njit(cache=True, ...)`), a `Kernel` until numba is
+    loaded."""
+    def decorate(py_func):
+        with _LOCK:
+            numba = _STATE["numba"]
+            if numba is not None:
+                return numba.njit(**options)(py_func)
+            kernel = Kernel(py_func, options)
+            _MADE.append(kernel)
+            return kernel
+    if len(args) == 1 and callable(args[0]) and not options:
+        return decorate(args[0])
+    if args:
+        raise TypeError("kinetre.jit.njit takes options only, not signatures")
+    return decorate
+
+
+def intrinsic(definition):
+    """numba's `intrinsic`, made when numba is loaded (the definition runs only inside numba's typing)."""
+    with _LOCK:
+        numba = _STATE["numba"]
+        if numba is not None:
+            from numba.extending import intrinsic as numba_intrinsic
+            return numba_intrinsic(definition)
+        made = Intrinsic(definition)
+        _MADE.append(made)
+        return made
+
+
+def __getattr__(name):
+    if name == "prange":  # only parallel kernels need it; it is numba's own object
+        return load_numba().prange
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
+
+def load_numba():
+    """Import numba with Kinetre's cache locator and compile notice, make the dispatchers of the kernels
+    made so far and put them in place of their `Kernel`s in Kinetre's modules (numba resolves a kernel's
+    callees from its globals when it compiles it; a `Kernel` held elsewhere calls its dispatcher). Returns
+    the numba module."""
+    with _LOCK:
+        if _STATE["numba"] is not None:
+            return _STATE["numba"]
+        import numba
+        _register_cache_locator()
+        _register_compile_listener()
+        for made in _MADE:
+            made.realise(numba)
+        swap = {id(made): made.real for made in _MADE}
+        for module_name, module in list(sys.modules.items()):
+            if module_name.partition(".")[0] != __package__ or module is None:
+                continue
+            space = vars(module)
+            for name, value in list(space.items()):
+                if type(value) in (Kernel, Intrinsic) and id(value) in swap:
+                    space[name] = swap[id(value)]
+        _MADE.clear()
+        _STATE["numba"] = numba
+        return numba
+
+
+def _register_cache_locator() -> None:
+    from numba.core import caching, config
+    impl = getattr(caching, "CacheImpl", None) or caching._CacheImpl  # numba < 0.60: _CacheImpl
+    if any(getattr(c, "__qualname__", "") == "SourceSetLocator" for c in impl._locator_classes):
+        return
+
+    class UserCacheLocator(caching._SourceFileBackedLocatorMixin, caching._CacheLocator):
+        """numba's locator for NUMBA_CACHE_DIR, with `kernel_cache_dir()` in its place."""
+
+        def __init__(self, py_func, py_file):
+            self._py_file = py_file
+            self._lineno = py_func.__code__.co_firstlineno
+            self._cache_path = os.path.join(kernel_cache_dir(), self.get_suitable_cache_subpath(py_file))
+
+        def get_cache_path(self):
+            return self._cache_path
+
+    class SourceSetLocator(caching._CacheLocator):
+        """numba's own choice of cache locator for a Kinetre kernel, with `sources_stamp()` in its stamp."""
+
+        def __init__(self, inner):
+            self._inner = inner
+
+        def ensure_cache_path(self):
+            self._inner.ensure_cache_path()
+
+        def get_cache_path(self):
+            return self._inner.get_cache_path()
+
+        def get_source_stamp(self):
+            return self._inner.get_source_stamp(), sources_stamp()
+
+        def get_disambiguator(self):
+            return self._inner.get_disambiguator()
+
+        @classmethod
+        def from_function(cls, py_func, py_file):
+            if not _inside(py_file):
+                return None
+            if not config.CACHE_DIR:
+                inner = UserCacheLocator.from_function(py_func, py_file)  # None when the folder cannot be made
                 if inner is not None:
                     return cls(inner)
-        return None
+            for other in impl._locator_classes:
+                if other is not cls:
+                    inner = other.from_function(py_func, py_file)
+                    if inner is not None:
+                        return cls(inner)
+            return None
+
+    impl._locator_classes.insert(0, SourceSetLocator)
 
 
-if SourceSetLocator not in _IMPL._locator_classes:
-    _IMPL._locator_classes.insert(0, SourceSetLocator)
+def _register_compile_listener() -> None:
+    from numba.core import event
 
+    class CompileListener(event.Listener):
+        """Tells `compile_notice` when a Kinetre kernel is compiled (numba sends the event on a cache miss
+        only)."""
 
-class CompileListener(event.Listener):
-    """Tells `compile_notice` when a Kinetre kernel is compiled (numba sends the event on a cache miss only)."""
+        def on_start(self, ev):
+            func = getattr(ev.data.get("dispatcher"), "py_func", None)
+            if getattr(func, "__module__", "").startswith(__package__ + "."):
+                compiling()
 
-    def on_start(self, ev):
-        func = getattr(ev.data.get("dispatcher"), "py_func", None)
-        if getattr(func, "__module__", "").startswith(__package__ + "."):
-            compiling()
+        def on_end(self, ev):
+            pass
 
-    def on_end(self, ev):
-        pass
-
-
-if not any(isinstance(x, CompileListener) for x in event._registered.get("numba:compile", ())):
-    event.register("numba:compile", CompileListener())
+    if not any(type(x).__qualname__.endswith("CompileListener") for x in event._registered.get("numba:compile", ())):
+        event.register("numba:compile", CompileListener())

@@ -12,12 +12,12 @@ from .common import EPILOG, UsageError
 
 
 def build_parser() -> argparse.ArgumentParser:
-    from . import animate, avatar, blender, capture, face, graph, info, models, record, rooms, scene, studio
+    from . import animate, avatar, blender, capture, face, graph, info, kernels, models, record, rooms, scene, studio
     parser = argparse.ArgumentParser(
         prog="kinetre", description="Animate any 3D mesh with a body's motion (embedded deformation).",
         epilog=EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
-    for command in (animate, capture, record, info, graph, studio, scene, rooms, models, blender):
+    for command in (animate, capture, record, info, graph, studio, scene, rooms, models, kernels, blender):
         command.register(sub)
     _add_scan(sub)
     face.register(sub)

@@ -14,12 +14,8 @@ import time
 from dataclasses import dataclass
 
 import numpy as np
-from llvmlite import ir
-from numba import types
-from numba.core import cgutils
-from numba.extending import intrinsic
 
-from ...jit import njit
+from ...jit import intrinsic, njit
 
 CLOCK = getattr(time, "CLOCK_THREAD_CPUTIME_ID", 3)  # Linux's value when the platform does not say
 NO_FLAG = np.zeros(0, np.uint8)  # no stop: the offline solve
@@ -27,6 +23,10 @@ NO_FLAG = np.zeros(0, np.uint8)  # no stop: the offline solve
 
 @intrinsic
 def _thread_cpu_ns(typingctx):
+    from llvmlite import ir  # numba is loaded when this runs (the intrinsic is typed inside a compilation)
+    from numba import types
+    from numba.core import cgutils
+
     def codegen(context, builder, signature, args):
         i32, i64 = ir.IntType(32), ir.IntType(64)
         timespec = ir.LiteralStructType([i64, i64])  # tv_sec, tv_nsec (LP64)
