@@ -3,7 +3,9 @@
 Records (one JSON object per line, "bench": "animate"):
 
 * `"numba_cache": "cold"`: a first-ever run in a fresh process with a new, empty numba cache, which compiles
-  every kernel (seconds, most of them in the graph stage); per-stage seconds and CPU seconds.
+  every kernel (seconds, most of them in the graph stage); per-stage seconds and CPU seconds. Then
+  `kinetre kernels` runs on that cache, as `make setup` does (the kernels compiled ahead of time), and every
+  record below reads it.
 * `"numba_cache": "warm", "clip": "walk 3 s"`: the whole command in a fresh process, as a user types it —
   `python -m kinetre.cli animate elephant.ply --motion walk.bvh -o out.glb --max-frames 90 --fps 30 -q`:
   interpreter start, imports, load, graph, attach, solve, GLB write. `wall_s` / `cpu_s` are the best of
@@ -186,6 +188,7 @@ def main(quick: bool = False) -> None:
 
         cold = run_stages()
         print(json.dumps({"bench": "animate", "numba_cache": "cold", **cold}), flush=True)
+        subprocess.run([sys.executable, "-m", "kinetre.cli", "kernels", "-q"], env=env, check=True, timeout=1200)
         warm = run_stages()
         for walk in _kept_and_off(lambda kept: _animate_argv(mesh, WALK, tmp / "walk.glb", FRAMES, kept), env,
                                   FRAMES / 30.0, RUNS):

@@ -11,7 +11,7 @@ from importlib import resources
 import numpy as np
 import pytest
 
-from kinetre.jit import compiled_dir, signature_key
+from kinetre.jit import compiled_dir, signature_matcher
 
 SPOT = resources.files("kinetre") / "data" / "spot.obj"
 WALK = resources.files("kinetre") / "data" / "cmu_12_01_walk.bvh"
@@ -27,15 +27,23 @@ def _values():
             (base, 2), (base[0], np.zeros(2, np.int32), (1.0, None))]
 
 
-def test_a_call_is_keyed_as_numba_types_it():
+def test_a_call_matches_a_compiled_signature_exactly_when_numba_would_type_it_so():
     from numba import typeof
 
     from kinetre.compiled import type_key
-    for value in _values():
-        assert signature_key((value,)) == (type_key(typeof(value)),), value
-    # what no compiled kernel takes goes to numba
-    for value in ([1.0, 2.0], "text", np.zeros(2, dtype=">f8"), np.zeros(2, dtype=[("a", "f8")]), 2 ** 70):
-        assert signature_key((1.0, value)) is None
+    values = _values()
+    keys = [type_key(typeof(v)) for v in values]
+    assert None not in keys and len(set(keys)) == 18  # Python's and numpy's scalars of one type share a key
+    # what no compiled kernel takes: numba's own type for it has no key, and no compiled signature matches it
+    others = [[1.0, 2.0], "text", np.zeros(2, dtype=">f8"), np.zeros(2, dtype=[("a", "f8")]), 2 ** 70,
+              np.ma.masked_array(np.zeros(3))]
+    for key, value in zip(keys, values):
+        match = signature_matcher((key,))
+        assert [match((other,)) for other in values] == [k == key for k in keys], value
+        assert not any(match((other,)) for other in others)
+        assert not match(()) and not match((value, value))
+    pair = signature_matcher((keys[0], keys[11]))
+    assert pair((values[0], values[11])) and not pair((values[11], values[0]))
 
 
 PROBE = """

@@ -26,8 +26,8 @@ __all__ = ["type_key", "used_signatures", "export_compiled"]
 
 
 def type_key(nbtype):
-    """The key `jit.signature_key` gives a call argument of numba type `nbtype`, or None for a type the
-    compiled kernels do not take."""
+    """The key of numba type `nbtype` as an argument of a compiled signature (`jit.signature_matcher` tests a
+    call against such keys), or None for a type the compiled kernels do not take."""
     from numba.core import types
     if isinstance(nbtype, types.Array):
         if not isinstance(nbtype.dtype, (types.Boolean, types.Integer, types.Float, types.Complex)) \

@@ -41,7 +41,7 @@ from .compile_notice import compiling
 from .userdirs import user_cache_dir
 
 __all__ = ["njit", "intrinsic", "prange", "Kernel", "load_numba", "slp_vectorizer", "sources_stamp",
-           "kernel_cache_dir", "compiled_dir", "signature_key", "COMPILED_TABLE"]
+           "kernel_cache_dir", "compiled_dir", "signature_matcher", "COMPILED_TABLE"]
 
 PACKAGE = Path(__file__).resolve().parent
 
@@ -147,49 +147,63 @@ def compiled_dir() -> Path:
     return kernel_cache_dir() / "compiled" / digest.hexdigest()
 
 
-def signature_key(args: tuple) -> tuple | None:
-    """The argument types of a call as numba would type them (`compiled.type_key` writes the same keys
-    from numba's types), or None for an argument the compiled kernels do not take."""
-    keys = []
-    for value in args:
-        key = _value_key(value)
-        if key is None:
-            return None
-        keys.append(key)
-    return tuple(keys)
+def signature_matcher(keys: tuple):
+    """A test `match(args) -> bool`: whether numba would type the call's arguments `args` as `keys`, the
+    argument types of one compiled signature (`compiled.type_key`'s keys: an array's dtype, dimensions,
+    layout and read-only flag; a scalar's type; a tuple's members; None). Generated as one expression, so a
+    45-argument solve step is matched in a few microseconds."""
+    names = [f"a{i}" for i in range(len(keys))]
+    test = " and ".join(_test(key, name) for key, name in zip(keys, names)) or "True"
+    unpack = f"    {', '.join(names)}, = args\n" if names else ""
+    code = f"def match(args):\n    if len(args) != {len(keys)}:\n        return False\n{unpack}    return {test}\n"
+    space = {"ndarray": np.ndarray, "np": np, "masked": np.ma.MaskedArray}
+    space.update({f"dtype_{name}": np.dtype(name) for name in _array_dtypes(keys)})
+    exec(code, space)
+    return space["match"]
 
 
-def _value_key(value):
-    kind = type(value)
-    if kind is float:
-        return "float64"
-    if kind is bool:
-        return "bool"
-    if kind is int:
-        return "int64" if -2 ** 63 <= value < 2 ** 63 else None
-    if isinstance(value, np.ndarray):
-        dtype, flags = value.dtype, value.flags
-        if dtype.kind not in "biufc" or not dtype.isnative or isinstance(value, np.ma.MaskedArray):
-            return None
-        layout = "C" if flags.c_contiguous else "F" if flags.f_contiguous else "A"
-        return ("array", dtype.name, value.ndim, layout, not flags.writeable)
-    if kind is tuple:
-        keys = tuple(_value_key(v) for v in value)
-        return None if None in keys else ("tuple",) + keys
-    if value is None:
-        return "none"
-    if isinstance(value, np.generic) and value.dtype.kind in "biufc":
-        return value.dtype.name
-    return None
+_SCALARS = {"float64": ("float", "np.float64"), "bool": ("bool", "np.bool_"), "int64": ("int", "np.int64")}
+_INT64 = (-2 ** 63, 2 ** 63 - 1)
+
+
+def _test(key, name: str) -> str:
+    """The expression testing argument `name` against a type key."""
+    if key == "none":
+        return f"{name} is None"
+    if isinstance(key, str):  # a scalar: numba types Python's int, float and bool as int64, float64, bool
+        python, numpy = _SCALARS.get(key, (None, f"np.{key}"))
+        exact = f"type({name}) is {numpy}"
+        if python is None:
+            return exact
+        inside = f" and {_INT64[0]} <= {name} <= {_INT64[1]}" if python == "int" else ""
+        return f"((type({name}) is {python}{inside}) or {exact})"
+    if key[0] == "tuple":
+        members = [_test(k, f"{name}[{i}]") for i, k in enumerate(key[1:])]
+        return f"(type({name}) is tuple and len({name}) == {len(members)}" + "".join(f" and {m}" for m in members) + ")"
+    _, dtype, ndim, layout, readonly = key
+    layout_test = {"C": "f.c_contiguous", "F": "not f.c_contiguous and f.f_contiguous",
+                   "A": "not f.c_contiguous and not f.f_contiguous"}[layout]
+    # an ndarray subclass is typed as an array too (numba's typeof dispatches on ndarray)
+    return (f"(isinstance({name}, ndarray) and {name}.dtype == dtype_{dtype} and {name}.dtype.isnative and "
+            f"{name}.ndim == {ndim} and {'not ' if readonly else ''}(f := {name}.flags).writeable and {layout_test} "
+            f"and not isinstance({name}, masked))")
+
+
+def _array_dtypes(keys) -> set[str]:
+    found = set()
+    for key in keys:
+        if isinstance(key, tuple):
+            found |= {key[1]} if key[0] == "array" else _array_dtypes(key[1:])
+    return found
 
 
 def _as_key(item):
-    """A key as read back from JSON (lists) → the tuples `signature_key` makes."""
+    """A key as read back from JSON (lists) → tuples."""
     return tuple(_as_key(x) for x in item) if isinstance(item, list) else item
 
 
 def _compiled_kernels() -> dict:
-    """{(module, qualname): {signature key: compiled function}} from `compiled_dir()`, {} when there is none
+    """{(module, qualname): [(signature matcher, compiled function)]} from `compiled_dir()`, {} when there is none
     (or it cannot be loaded: then every call goes to numba, as without it)."""
     with _LOCK:
         table = _STATE["compiled"]
@@ -206,7 +220,8 @@ def _load_compiled(folder: Path) -> dict:
         spec.loader.exec_module(module)
         table: dict = {}
         for module_name, qualname, key, symbol in listing["kernels"]:
-            table.setdefault((module_name, qualname), {})[_as_key(key)] = getattr(module, symbol)
+            table.setdefault((module_name, qualname), []).append((signature_matcher(_as_key(key)),
+                                                                   getattr(module, symbol)))
         return table
     except (OSError, ValueError, KeyError, TypeError, ImportError, AttributeError):
         return {}
@@ -226,11 +241,11 @@ class Kernel:
     def __call__(self, *args, **kwargs):
         twins = self._twins
         if twins is None:
-            twins = self._twins = _compiled_kernels().get((self.py_func.__module__, self.py_func.__qualname__), {})
-        if twins and not kwargs:
-            twin = twins.get(signature_key(args))
-            if twin is not None:
-                return twin(*args)
+            twins = self._twins = _compiled_kernels().get((self.py_func.__module__, self.py_func.__qualname__), ())
+        if not kwargs:
+            for match, twin in twins:
+                if match(args):
+                    return twin(*args)
         return self.dispatcher(*args, **kwargs)
 
     @property
