@@ -13,12 +13,18 @@ import numpy as np
 
 from ..errors import BadMotionError
 from .bvh import load_bvh
-from .capture import capture_video
 from .gltf import load_gltf, split_animation
 from .stream import read_stream
 from .take import Take
 
 __all__ = ["Take", "READERS", "load_take", "resample"]
+
+
+def capture_video(path: str | os.PathLike) -> Take:
+    """`motion.capture.capture_video`: the tracker's modules are imported when a video is read, not with
+    every motion file."""
+    from .capture import capture_video as track
+    return track(path)
 
 
 # Extension -> reader(path, **options); compound extensions are matched first.
