@@ -79,10 +79,10 @@ class StubSolver:
         return pose
 
 
-def test_a_pose_solved_while_a_newer_frame_waits_goes_out_once_the_next_solve_is_sent(spot64, walk):
-    """Every solved pose is published once, in order, and recorded; a pose whose solve ended with a newer
-    frame waiting is published right after the next solve has been asked for (not before: the solver works
-    meanwhile), one without is published at once. `late` asks a solve whose frame is that old to yield."""
+def test_a_solved_pose_goes_out_as_its_solve_ends_even_with_a_newer_frame_waiting(spot64, walk):
+    """Every solved pose is published once, in order, and recorded, as soon as its solve ends: one whose solve
+    ended with a newer frame waiting is out before the next solve is asked for. `late` asks a solve whose
+    frame is that old to yield."""
     from kinetre.studio.channels import Frame, Hub
     from kinetre.studio.scene import Scene
     from kinetre.studio.subjects import TRANSFORMS
@@ -116,15 +116,15 @@ def test_a_pose_solved_while_a_newer_frame_waits_goes_out_once_the_next_solve_is
 
     start, after_first, after_second, solver = asyncio.run(go())
     assert after_first == start + 1
-    assert after_second == after_first  # held: a newer frame waited
-    assert solver.calls[-1] == after_second  # …and still held when the third solve was asked for
-    assert len(published) == after_second + 2  # then the second and the third
+    assert after_second == after_first + 1  # out at once, though a newer frame waited
+    assert solver.calls[-1] == after_second  # …before the third solve was asked for
+    assert len(published) == after_second + 1  # then the third
     moved = [float(unpack_transforms(block)[4][0, 0, 3]) for block in published[start:]]  # node 0's t_x
     assert moved == [1.0, 2.0, 3.0]
 
 
-def test_a_pose_held_for_the_next_solve_is_in_the_take_when_recording_stops(spot64, walk):
-    """Stop recording right after a solve whose pose is held (a newer frame waited): the take still has it."""
+def test_a_pose_solved_while_a_newer_frame_waits_is_in_the_take_when_recording_stops(spot64, walk):
+    """Stop recording right after a solve that ended with a newer frame waiting: the take has its pose."""
     from kinetre.studio.channels import Frame, Hub
     from kinetre.studio.scene import Scene
     mesh, graph = spot64
@@ -141,7 +141,7 @@ def test_a_pose_held_for_the_next_solve_is_in_the_take_when_recording_stops(spot
         scene.receive(Frame("kinetre.skeleton.u", 3, 3.0, b"", SkeletonFrame(3, 3.0, walk[3])))  # during the second solve
         await task
         first = scene.meshes.first
-        assert first.unpublished is not None  # the second solve's pose is held
+        assert first.unpublished is None  # the second solve's pose went out (and into the take) at once
         return scene.stop_recordings()[first.id]
 
     take = asyncio.run(go())

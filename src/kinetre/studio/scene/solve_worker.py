@@ -70,7 +70,7 @@ class InlineSolver:
         self.rig = None
 
 
-YIELD_AFTER_S = 0.003  # CPU seconds a frame's solve may take before it yields to a newer frame
+YIELD_AFTER_S = 0.0015  # CPU seconds a frame's solve may take before it yields to a newer frame
 
 
 def yielding(newer: np.ndarray) -> Yield:
