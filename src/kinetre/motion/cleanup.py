@@ -190,9 +190,10 @@ def clean_take(take: Take, settings: CleanupSettings = CleanupSettings()) -> Tak
 class RoomFloor:
     """One floor for everyone in a room: the stance points every user's `LiveCleaner` reports, the last
     `history` points kept, a plane fitted to them (`fit_floor`) once there are enough, and the resting
-    `level` of the points above it (their 20th percentile). Both are refitted every 10 new points, not per
-    frame: with everyone's feet in the room, a per-frame fit over thousands of points would cost each
-    frame more than the rest of its cleaning."""
+    `level` of the points above it (their 20th percentile). Both are refitted every 10 new points while
+    there are few, then every tenth of the points kept, not per frame: a fit costs in proportion to its
+    points, and a floor that rests on thousands of points moves little with the next ten, while its refit
+    would cost the frame that triggers it more than the rest of its cleaning."""
 
     def __init__(self, history: int = 3000):
         self.history = history
@@ -206,7 +207,7 @@ class RoomFloor:
         self._ring[self._count % self.history] = point
         self._count += 1
         self._fresh += 1
-        if self._count >= 10 and (self.floor is None or self._fresh >= 10):
+        if self._count >= 10 and (self.floor is None or self._fresh >= max(10, min(self._count, self.history) // 10)):
             pts = self.points()
             self.floor, self._fresh = fit_floor(pts), 0
             self.level = resting_level(self.floor, pts)

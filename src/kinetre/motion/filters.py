@@ -136,19 +136,17 @@ def tune_one_euro(positions: np.ndarray, fps: float, rest_noise: float = 0.002, 
     whole = np.flatnonzero(seen.all(axis=0)) if len(pos) >= w else np.zeros(0, int)
     if len(whole):  # the joints tracked in every frame, in one pass (the live path retunes every second)
         fits = savgol_filter(pos[:, whole], w, 3, axis=0)
-    for k in range(j):
+        res = (pos[:, whole] - fits).transpose(1, 0, 2).reshape(len(whole), -1)
+        noise[whole] = 1.4826 * np.median(np.abs(res - np.median(res, axis=1, keepdims=True)), axis=1)
+        speed[whole] = np.percentile(np.linalg.norm(np.diff(fits, axis=0), axis=2) * fps, 75, axis=0)
+    for k in np.flatnonzero(~np.isin(np.arange(j), whole)):
         res, spd = [], []
-        if k in whole:
-            fit = fits[:, int(np.searchsorted(whole, k))]
-            res.append((pos[:, k] - fit).ravel())
+        for a, b in _runs(seen[:, k]):
+            if b - a < w:
+                continue
+            fit = savgol_filter(pos[a:b, k], w, 3, axis=0)
+            res.append((pos[a:b, k] - fit).ravel())
             spd.append(np.linalg.norm(np.diff(fit, axis=0), axis=1) * fps)
-        else:
-            for a, b in _runs(seen[:, k]):
-                if b - a < w:
-                    continue
-                fit = savgol_filter(pos[a:b, k], w, 3, axis=0)
-                res.append((pos[a:b, k] - fit).ravel())
-                spd.append(np.linalg.norm(np.diff(fit, axis=0), axis=1) * fps)
         if res:
             r = np.concatenate(res)
             noise[k] = 1.4826 * np.median(np.abs(r - np.median(r)))
