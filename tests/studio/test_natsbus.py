@@ -298,6 +298,10 @@ class SlowSolver:
         await asyncio.sleep(self.seconds)
         return GraphPose.identity(self.graph.node_count)
 
+    def submit(self, skeletons, overdue, ended):
+        from kinetre.studio.scene.solve_worker import submitted
+        submitted(self.solve(skeletons, overdue), ended)
+
 
 def run_two_users(walk, monkeypatch, offset_s):
     """Two possessing users at 30 Hz, the second's frames `offset_s` after the first's on the scene's clock

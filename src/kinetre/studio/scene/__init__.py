@@ -5,12 +5,13 @@ Its modules follow a frame's path through it:
     users        frames in: each user's newest frame (latest wins)
     meshes       the meshes, each with its graph, placement, rig and solver; place and fit
     possession   who possesses which mesh; each mesh's rig
-    solve_loop   each mesh's solve loop (its solver: solve_worker) and the one place a pose goes out
+    solve_loop   each mesh's solves (its solver: solve_worker) and the one place a pose goes out
     takes        each mesh's solved frames, recorded to a take log
     state        the state message every page shows
 
 `Scene` ties them together for the server (host.py): it subscribes to every skeleton subject (SKELETONS),
-runs one solve loop per mesh, and publishes each mesh's node matrices on its transforms subject.
+solves each mesh as its possessors' frames come in, and publishes each mesh's node matrices on its transforms
+subject.
 """
 from __future__ import annotations
 
@@ -77,7 +78,7 @@ class Scene:
         self.users = Users(clean, contact)
         self.recording = Recording()
         self.publisher = Publisher(hub, self.recording)
-        self.possession = Possession(self.users, self.meshes, self.publisher)
+        self.possession = Possession(self.users, self.meshes, self.publisher, lambda m: self.solves.kick(m))
         self.solves = SolveLoops(self.users, self.meshes, self.publisher, self.possession.rebuild)
         self.joint_map = None  # a JointMap: the n-th user to possess a mesh drives with the joints sources[n] keeps
         self._state_seq = 0
@@ -103,7 +104,6 @@ class Scene:
         released and its pose is at rest; it gets a new id (pages load it anew), which is returned.
         `upright`: the up axis it was stood on (shown on the page, which can override it)."""
         old = self.meshes.named(mesh_id)
-        self.publisher.flush(old)
         self.recording.drop(old.id)
         self.possession.release_all(old)
         new = SceneMesh(self.meshes.next_id(), mesh, graph, name, old.solver, upright, old.placement)
@@ -200,7 +200,7 @@ class Scene:
 
     # --- the solve loops ----------------------------------------------------------------------------
     async def run(self) -> None:
-        """Consume skeleton frames and publish transforms until cancelled: one solve loop per mesh."""
+        """Consume skeleton frames and publish transforms until cancelled (see `SolveLoops`)."""
         sub = self._skeletons = self.hub.subscribe(SKELETONS)
         # each frame is taken in the publisher's own call (the server's handler, or the bus callback): a
         # hop through a task would make it wait a loop iteration, behind whatever else is ready
@@ -289,8 +289,6 @@ class Scene:
     def stop_recordings(self) -> dict[int, list[TakeFrame]]:
         """Each mesh's recorded frames by mesh id (the first mesh's first), read back from the take logs
         (which are then removed)."""
-        for m in self.meshes.values():
-            self.publisher.flush(m)  # a pose held back for the next solve's request was solved while recording
         takes = self.recording.stop()
         self.publish_state()
         return {i: takes[i] for i in self.meshes if i in takes}

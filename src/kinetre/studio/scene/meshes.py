@@ -52,14 +52,25 @@ class SceneMesh:
     solve_ms: list[float] = field(default_factory=list)  # recent solve round trips (wall), for the state line
     solve_cpu_ms: list[float] = field(default_factory=list)  # the last 600 solves' CPU time in the solver
     stopped: int = 0  # solves that yielded to a newer frame after a step (solve_worker.yielding)
-    # (pose, t_source, skeletons, hands, blendshapes) solved, published once the next solve is sent
-    unpublished: tuple | None = None
-    lock: asyncio.Lock = field(default_factory=asyncio.Lock)  # one attach/solve at a time
-    dirty: asyncio.Event = field(default_factory=asyncio.Event)  # a possessor's frame waits for a solve
+    lock: asyncio.Lock = field(default_factory=asyncio.Lock)  # held by an attach, or an awaited solve
+    dirty: asyncio.Event = field(default_factory=asyncio.Event)  # a solve is asked for (a possessor's new frame)
+    solving: asyncio.Future | None = None  # the solve in flight, done once its pose is out
+    gather: asyncio.TimerHandle | None = None  # the end of a wait for a possessor's due frame (solve_loop)
 
     def __post_init__(self):
         if self.pose is None:
             self.pose = GraphPose.identity(self.graph.node_count)
+
+    async def idle(self) -> None:
+        """Once no solve is in flight (its pose is out)."""
+        while self.solving is not None:
+            await asyncio.wait([self.solving])
+
+    def wait_gather(self, handle: asyncio.TimerHandle | None) -> None:
+        """The timer that ends the wait for a due frame (None: no wait), instead of any before."""
+        if self.gather is not None:
+            self.gather.cancel()
+        self.gather = handle
 
     def box(self) -> tuple[np.ndarray, np.ndarray]:
         """World-space (min, max) of the mesh at rest, as placed."""

@@ -7,6 +7,7 @@ who possesses a mesh attaches its rig anew from all its possessors' binding pose
 from __future__ import annotations
 
 import asyncio
+from typing import Callable
 
 from ...deform.pose import GraphPose
 from ...errors import AttachError
@@ -24,8 +25,9 @@ from .users import User, Users, arrival
 class Possession:
     """Who possesses which of the scene's meshes, and each mesh's rig."""
 
-    def __init__(self, users: Users, meshes: Meshes, publisher: Publisher):
-        self.users, self.meshes, self.publisher = users, meshes, publisher
+    def __init__(self, users: Users, meshes: Meshes, publisher: Publisher, wake: Callable[[SceneMesh], None]):
+        """`wake(m)`: mesh `m`'s rig changed, its next solve may start."""
+        self.users, self.meshes, self.publisher, self.wake = users, meshes, publisher, wake
 
     async def possess(self, user: User, m: SceneMesh, subset=None, hand: str | None = None,
                       joint_map=None) -> None:
@@ -93,7 +95,7 @@ class Possession:
         for user in self.users.values():
             if user.mesh == m.id:
                 user.let_go()
-        m.rig, m.possessors, m.unpublished = None, [], None
+        m.rig, m.possessors = None, []
 
     def rebuild_later(self, m: SceneMesh) -> None:
         asyncio.get_running_loop().create_task(self.rebuild(m))
@@ -102,11 +104,11 @@ class Possession:
         """Attach mesh `m`'s rig from all its possessors' binding poses; with none, the mesh goes back to
         rest."""
         async with m.lock:
+            await m.idle()  # the solve in flight ends with the rig it was sent to
             if not self.meshes.holds(m):
                 return  # replaced or removed meanwhile
             possessors = self.users.possessing(m.id)
             if not possessors:
-                self.publisher.flush(m)
                 m.rig, m.possessors = None, []
                 m.pose = GraphPose.identity(m.graph.node_count)  # let go: back to rest
                 self.publisher.publish(m, now_ms())
@@ -121,3 +123,4 @@ class Possession:
             m.rig = m.solver
             m.possessors = possessors
         m.dirty.set()
+        self.wake(m)

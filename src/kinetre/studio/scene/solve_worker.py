@@ -7,6 +7,9 @@ public `attach` / `Rig.solve` / `SolverSettings` API is used.
 
     InlineSolver   attach and solve in a thread of this process (unit tests, offline tools)
     SolveWorker    attach and solve in a child process (the studio and `kinetre scene`)
+
+Both take a solve with `submit(skeletons, overdue, ended)`: the request goes out in the caller's call and
+`ended` gets the pose (or the error) in the event-loop callback that reads the answer.
 """
 from __future__ import annotations
 
@@ -15,6 +18,7 @@ import gc
 import multiprocessing
 import os
 import time
+from typing import Awaitable, Callable
 
 import numpy as np
 
@@ -27,6 +31,19 @@ from ...skeleton.rig import attach
 
 class SolverLost(KinetreError):
     """The solve process died (killed, or out of memory); the scene starts a new one and re-attaches."""
+
+
+Ended = Callable[[object], None]  # gets a solve's pose, or the exception that ended it
+
+
+def submitted(solve: Awaitable, ended: Ended) -> None:
+    """Run an awaitable solve in a task and hand its pose, or its error, to `ended`."""
+    def report(task: asyncio.Task) -> None:
+        if task.cancelled():  # the scene is closing
+            ended(asyncio.CancelledError())
+            return
+        ended(task.exception() if task.exception() is not None else task.result())
+    asyncio.get_running_loop().create_task(solve).add_done_callback(report)
 
 
 class InlineSolver:
@@ -62,6 +79,10 @@ class InlineSolver:
             self.cpu_ms = 1000 * (time.thread_time() - start)
             return pose
         return await asyncio.to_thread(timed)
+
+    def submit(self, skeletons, overdue: bool, ended: Ended) -> None:
+        """`solve`, its pose or error handed to `ended`."""
+        submitted(self.solve(skeletons, overdue), ended)
 
     def detach(self) -> None:
         self.rig = None
@@ -167,6 +188,7 @@ class SolveWorker:
         self._conn = None
         self._newer = None  # a byte shared with the child: a newer frame waits
         self._lock = asyncio.Lock()
+        self._pending: asyncio.Future | None = None  # a submitted solve's answer, not read yet
         self.restarts = 0  # processes lost and replaced
         self.cpu_ms = 0.0  # CPU time the child spent on the last request
         self.stopped = False  # the last solve yielded to a newer frame
@@ -186,6 +208,8 @@ class SolveWorker:
 
     async def _call(self, *request):
         async with self._lock:
+            while self._pending is not None:  # a submitted solve's answer comes first
+                await asyncio.wait([self._pending])
             if self._proc is None or not self._proc.is_alive():
                 if self._proc is not None:
                     self.restarts += 1
@@ -195,8 +219,7 @@ class SolveWorker:
                 await self._readable()
                 status, value, cpu, stopped = self._conn.recv()
             except (EOFError, OSError, BrokenPipeError):
-                self._proc = None
-                self.restarts += 1  # the next call starts a new process
+                self._lost()
                 raise SolverLost("the solve process stopped; possess again") from None
         self.cpu_ms, self.stopped = 1000 * cpu, stopped
         if status == "error":
@@ -237,10 +260,54 @@ class SolveWorker:
             self._newer.value = int(overdue)  # else frames that arrive from now on are newer than these
         return await self._call("solve", skeletons)
 
+    def submit(self, skeletons, overdue: bool, ended: Ended) -> None:
+        """`solve`, with the request written now and `ended` called in the event loop's callback that finds
+        the answer readable (no task wakes on either side). While the process is not up, or another request
+        is under way, it goes through `solve`."""
+        if self._proc is None or self._lock.locked() or self._pending is not None:
+            submitted(self.solve(skeletons, overdue), ended)
+            return
+        loop = asyncio.get_running_loop()
+        self._newer.value = int(overdue)
+        try:
+            self._conn.send(("solve", skeletons))
+        except (OSError, BrokenPipeError):
+            self._lost()
+            loop.call_soon(ended, SolverLost("the solve process stopped; possess again"))
+            return
+        fd = self._conn.fileno()
+        self._pending = loop.create_future()
+
+        def answered() -> None:  # also on EOF: the child died
+            loop.remove_reader(fd)
+            os.set_blocking(fd, True)  # uvloop made it non-blocking; Connection reads expect blocking
+            pending, self._pending = self._pending, None
+            pending.set_result(None)
+            try:
+                status, value, cpu, stopped = self._conn.recv()
+            except (EOFError, OSError):
+                self._lost()
+                ended(SolverLost("the solve process stopped; possess again"))
+                return
+            self.cpu_ms, self.stopped = 1000 * cpu, stopped
+            ended(value)  # the pose, or the error the child reported
+        loop.add_reader(fd, answered)
+
+    def _lost(self) -> None:
+        self._proc = None
+        self.restarts += 1  # the next call starts a new process
+
     def detach(self) -> None:
         pass  # the child's rig is replaced at the next attach
 
     def close(self) -> None:
+        if self._pending is not None:  # a solve's answer will not be read
+            try:
+                asyncio.get_running_loop().remove_reader(self._conn.fileno())
+            except (RuntimeError, OSError, ValueError):
+                pass
+            self._pending.set_result(None)
+            self._pending = None
         if self._proc is not None:
             try:
                 self._conn.close()
