@@ -303,11 +303,12 @@ class SlowSolver:
         submitted(self.solve(skeletons, overdue), ended)
 
 
-def run_two_users(walk, monkeypatch, offset_s):
+def run_two_users(walk, monkeypatch, offset_s, stamped_in_step=False, solve_s=0.02):
     """Two possessing users at 30 Hz, the second's frames `offset_s` after the first's on the scene's clock
     (faked, so the periods it learns are exact). Returns the frames each solve took after a second of that
     (joint 0's x tells the frames apart), the newest frames' x, and what the scene does when only the
-    first user's frames go on."""
+    first user's frames go on. `stamped_in_step`: both senders stamp a tick's frames with the tick's time
+    (else each frame's stamp is its sequence number, which tells nothing of ticks); a solve takes `solve_s`."""
     from kinetre.studio.scene import solve_loop, users
     mesh, graph = prepare_mesh(str(data_path("spot.obj")), 32)
     clock = [1000.0]
@@ -316,39 +317,39 @@ def run_two_users(walk, monkeypatch, offset_s):
                                                             perf_counter=time.perf_counter, time=time.time))
 
     async def go():
-        solver = SlowSolver(graph)
+        solver = SlowSolver(graph, solve_s)
         # raw frames: the solver must be handed each frame's own positions, which cleaning would smooth
         scene = Scene(Hub(), mesh, graph, "spot.obj", solver=solver, clean=False)
         seq = [0]
 
-        def send(user, skeleton):
+        def send(user, skeleton, k=None):
             seq[0] += 1
-            scene.receive(Frame(f"kinetre.skeleton.{user}", seq[0], float(seq[0]), b"",
-                                SkeletonFrame(seq[0], float(seq[0]), skeleton)))
+            t = 1000.0 * k / 30 + 0.2 * (user == "b") if stamped_in_step and k is not None else float(seq[0])
+            scene.receive(Frame(f"kinetre.skeleton.{user}", seq[0], t, b"", SkeletonFrame(seq[0], t, skeleton)))
         for user in ("a", "b"):
             send(user, walk[0])
             await scene.possess(user)
 
         def tick(k):
             clock[0] = 1000.0 + k / 30
-            send("a", walk[k])
+            send("a", walk[k], k)
             clock[0] += offset_s
-            send("b", walk[k])
+            send("b", walk[k], k)
         for k in range(1, 31):
             tick(k)
         task = asyncio.get_running_loop().create_task(scene.run())
         await asyncio.sleep(0.1)  # one solve of the newest frames
         solver.solved.clear()
         clock[0] = 1000.0 + 31 / 30  # the next tick
-        send("a", walk[40])
+        send("a", walk[40], 31)
         for _ in range(3):
             await asyncio.sleep(0)  # the scene sees it and decides whether to wait
         clock[0] += offset_s
-        send("b", walk[40])
+        send("b", walk[40], 31)
         await asyncio.sleep(0.1)
         solved = list(solver.solved)  # the solves of walk[40]; each mesh's solve loop may take walk[41] next
         clock[0] += 0.5  # the second user stopped: the first's next frame is not held for it
-        send("a", walk[41])
+        send("a", walk[41], 46)
         later = scene.solves.gather_deadline(scene.meshes.first, clock[0])
         task.cancel()
         return solved, round(float(walk[40].positions[0, 0]), 3), later
@@ -362,6 +363,17 @@ def test_a_solve_waits_for_a_possessors_frame_that_is_due(walk, monkeypatch):
     assert solved == [[x, x]] and later is None
     solved, x, _ = run_two_users(walk, monkeypatch, 0.016)  # half a period out of step; a solve takes 20 ms
     assert solved[0][0] == x and solved[0][1] != x and solved[1] == [x, x]
+
+
+def test_frames_their_senders_stamp_in_one_tick_are_solved_together_however_late_the_second_arrives(
+        walk, monkeypatch):
+    """Two people in one camera (or cameras ticking together): their frames carry the same tick's time, so the
+    second is waited for even when it arrives later than half a solve after the first (9 ms; a solve takes
+    10); frames stamped otherwise are not; and not once the second sender has stopped."""
+    solved, x, later = run_two_users(walk, monkeypatch, 0.009, stamped_in_step=True, solve_s=0.01)
+    assert solved == [[x, x]] and later is None
+    solved, x, _ = run_two_users(walk, monkeypatch, 0.009, stamped_in_step=False, solve_s=0.01)
+    assert solved[0][0] == x and solved[0][1] != x
 
 
 def test_a_nats_py_the_fast_paths_were_not_checked_against_is_refused_before_connecting(monkeypatch):
