@@ -236,3 +236,45 @@ def test_a_cut_short_solve_is_resumed_only_once_its_users_frames_are_overdue(spo
 
     assert asyncio.run(run(0.01)) == (True, False)  # overdue after 15 ms: resumed; a newer frame: not
     assert asyncio.run(run(30.0)) == (False, False)  # a 30 s period: the next frame is not overdue yet
+
+
+class FailingOnceSolver(StubSolver):
+    """The stub whose first live solve fails (a bug, or a bad frame), then solves as before."""
+
+    async def solve(self, skeleton, overdue=False):
+        if not self.calls:
+            self.calls.append(len(self.published))
+            raise RuntimeError("boom")
+        return await super().solve(skeleton, overdue)
+
+
+def test_a_live_solve_that_fails_is_reported_and_the_next_frame_is_solved(spot64, walk):
+    """One failed solve must not stop the scene: the state's error line names it, and the user's next frame is
+    solved and published."""
+    from kinetre.studio.channels import Frame, Hub
+    from kinetre.studio.scene import Scene
+    from kinetre.studio.subjects import TRANSFORMS
+    mesh, graph = spot64
+    hub = Hub()
+    published = []
+    hub.subscribe(TRANSFORMS).direct = lambda frame: published.append(frame.data) or True
+
+    def feed(scene, k):
+        scene.receive(Frame("kinetre.skeleton.u", k, 1000.0 * k, b"", SkeletonFrame(k, 1000.0 * k, walk[k])))
+
+    async def go():
+        scene = Scene(hub, mesh, graph, solver=FailingOnceSolver(graph, published))
+        feed(scene, 1)
+        await scene.possess("u")
+        start = len(published)
+        running = asyncio.get_running_loop().create_task(scene.run())
+        await asyncio.sleep(0.05)  # the possessed frame's solve, which fails
+        failed = scene.last_error, len(published) - start
+        feed(scene, 2)
+        await asyncio.sleep(0.05)
+        running.cancel()
+        return failed, len(published) - start, scene.meshes.first.solving
+
+    (error, after_failure), after_next, solving = asyncio.run(go())
+    assert "RuntimeError: boom" in error and after_failure == 0
+    assert after_next == 1 and solving is None

@@ -238,11 +238,7 @@ class SolveLoops:
                     if isinstance(outcome, SolverLost):
                         m.rig = None  # the worker died: re-attach everybody at their current pose
                         loop.create_task(self.rebuild(m))
-                    if done is None:
-                        self.failed(outcome)
-                    else:
-                        done.set_exception(outcome)
-                    return
+                    raise outcome
                 m.solve_ms[:] = (m.solve_ms + [1000 * (time.perf_counter() - start)])[-60:]
                 m.solve_cpu_ms[:] = (m.solve_cpu_ms + [m.solver.cpu_ms])[-600:]
                 stopped = bool(getattr(m.solver, "stopped", False))
@@ -252,6 +248,14 @@ class SolveLoops:
                     done.set_result(outcome)
                 elif stopped and not m.dirty.is_set():
                     self.resume_when_quiet(m)
+            except (Exception, asyncio.CancelledError) as exc:  # the solve's error, or its pose's recording
+                if isinstance(exc, asyncio.CancelledError):  # the scene is closing
+                    if done is not None:
+                        done.cancel()
+                elif done is None:
+                    self.failed(exc)
+                elif not done.done():
+                    done.set_exception(exc)
             finally:
                 solving.set_result(None)
                 if not self.meshes.holds(m):
