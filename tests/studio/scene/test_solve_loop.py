@@ -239,7 +239,7 @@ def test_a_cut_short_solve_is_resumed_only_once_its_users_frames_are_overdue(spo
 
 
 class FailingOnceSolver(StubSolver):
-    """The stub whose first live solve fails (a bug, or a bad frame), then solves as before."""
+    """`StubSolver`, but its first live solve fails (a bug, or a bad frame); then it solves as before."""
 
     async def solve(self, skeleton, overdue=False):
         if not self.calls:

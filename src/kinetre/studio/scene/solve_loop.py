@@ -114,8 +114,7 @@ class SolveLoops:
         """Start mesh `m`'s next solve now, in the caller's call, if one is asked for (`m.dirty`) and none is in
         flight or attaching; or, when another possessor's frame is due within moments, once it came or
         `gather_deadline` passed."""
-        if not self.running or m.solving is not None or m.lock.locked() or not m.dirty.is_set() or \
-                not self.meshes.holds(m):
+        if not self.can_start(m):
             return
         now = time.monotonic()
         deadline = self.gather_deadline(m, now)
@@ -128,9 +127,14 @@ class SolveLoops:
     def gathered(self, m: SceneMesh) -> None:
         """The wait for a possessor's due frame is over: solve what came."""
         m.gather = None
-        if self.running and m.solving is None and not m.lock.locked() and m.dirty.is_set() and \
-                self.meshes.holds(m):
+        if self.can_start(m):
             self.begin_live(m)
+
+    def can_start(self, m: SceneMesh) -> bool:
+        """A live solve of mesh `m` is asked for and may start now: the scene runs and holds the mesh, and no
+        solve is in flight or attach under way."""
+        return self.running and m.solving is None and not m.lock.locked() and m.dirty.is_set() and \
+            self.meshes.holds(m)
 
     def begin_live(self, m: SceneMesh) -> None:
         try:

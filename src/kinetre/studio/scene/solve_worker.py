@@ -180,6 +180,12 @@ def _serve(conn, newer) -> None:
         conn.send((*reply, time.thread_time() - start, stopped))
 
 
+def _unwatch(loop: asyncio.AbstractEventLoop, fd: int) -> None:
+    """Stop waiting for the pipe `fd` to be readable."""
+    loop.remove_reader(fd)
+    os.set_blocking(fd, True)  # uvloop made it non-blocking; Connection reads and writes expect blocking
+
+
 class SolveWorker:
     """attach/solve in a child process (spawned once, restarted after it dies)."""
 
@@ -237,8 +243,7 @@ class SolveWorker:
         try:
             await ready
         finally:
-            loop.remove_reader(fd)
-            os.set_blocking(fd, True)  # uvloop made it non-blocking; Connection reads and writes expect blocking
+            _unwatch(loop, fd)
 
     async def start(self) -> int:
         """Spawn the process now (instead of at the first possession); returns its pid."""
@@ -279,8 +284,7 @@ class SolveWorker:
         self._pending = loop.create_future()
 
         def answered() -> None:  # also on EOF: the child died
-            loop.remove_reader(fd)
-            os.set_blocking(fd, True)  # uvloop made it non-blocking; Connection reads expect blocking
+            _unwatch(loop, fd)
             pending, self._pending = self._pending, None
             pending.set_result(None)
             try:
