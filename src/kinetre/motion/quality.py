@@ -79,6 +79,18 @@ def jitter(positions: np.ndarray, fps: float, noise_only: bool = False) -> np.nd
     """(J,) mean |acceleration| per joint, m/s^2 (NaN for a joint never tracked three frames running);
     with `noise_only`, of the residual after a smooth fit."""
     pos = np.asarray(positions, dtype=np.float64)
+    if noise_only:
+        return _jitter_of_noise(pos, fps)
+    # an acceleration needs three frames running tracked: the same triples a walk over each joint's runs takes
+    acc = np.linalg.norm(pos[2:] - 2 * pos[1:-1] + pos[:-2], axis=2) * fps * fps  # (T-2, J), NaN off-track
+    ok = np.isfinite(acc)
+    count = ok.sum(axis=0)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return np.where(count > 0, np.where(ok, acc, 0.0).sum(axis=0) / count, np.nan)
+
+
+def _jitter_of_noise(pos: np.ndarray, fps: float) -> np.ndarray:
+    """`jitter` of each joint's residual after a smooth fit over each of its tracked runs."""
     out = np.full(pos.shape[1], np.nan)
     for j in range(pos.shape[1]):
         total, count = 0.0, 0
@@ -86,8 +98,7 @@ def jitter(positions: np.ndarray, fps: float, noise_only: bool = False) -> np.nd
             x = pos[a:b, j]
             if len(x) < 3:
                 continue
-            if noise_only:
-                x = x - _smooth_fit(x, fps)
+            x = x - _smooth_fit(x, fps)
             acc = np.linalg.norm(x[2:] - 2 * x[1:-1] + x[:-2], axis=1) * fps * fps
             total, count = total + acc.sum(), count + len(acc)
         if count:

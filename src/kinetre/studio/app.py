@@ -106,7 +106,7 @@ def create_app(mesh_path: str | None = None, nodes: int = NODES, sample_motion: 
     viewers: dict[str, Viewer] = {}
     prefix = f"{secrets.token_hex(2)}-" if nats else ""  # client names unique across studios of a room
     sessions = Sessions(host.forget, prefix, resume_s)
-    framing = Framing()  # each transform block framed once for all pages
+    framing = Framing()  # each transform block and state framed once for all pages
     vmc_out = VmcOut(hub, shelf, *vmc) if vmc is not None else None
     vmc_users = VmcUsers(hub, possess_command(host, hub), *vmc_listen) if vmc_listen is not None else None
     bridges: list[asyncio.Task] = []

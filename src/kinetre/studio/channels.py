@@ -123,6 +123,13 @@ class Subscription:
             self._wakeup.clear()
         return frame
 
+    async def pending(self) -> bool:
+        """Wait until a frame is pending, without taking it (`poll` takes it); False once closed."""
+        while not self.closed and not (self._first or self._latest):
+            self._wakeup.clear()
+            await self._wakeup.wait()
+        return not self.closed
+
     async def next(self, timeout: float | None = None) -> Frame | None:
         """Wait for the next frame (None on timeout or after `close`)."""
         deadline = None if timeout is None else time.monotonic() + timeout

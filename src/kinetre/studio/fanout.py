@@ -6,7 +6,8 @@ protocol framing and a copy of the block for every page, plus a wake-up of that 
 publish kept the loop busy long enough for the frames of capture clients to wait behind it. Here the block
 is framed once (an unmasked binary frame, RFC 6455 §5.2, by `websockets`) and, in the publisher's own call,
 written to each page's transport that can take it now: no task wakes, a send is one `transport.write`
-(figures: benchmarks/bench_network.py).
+(figures: benchmarks/bench_network.py). The scene's state (a text frame, once a second and on every
+change) goes the same way: sent through ASGI to a hundred pages, it held the loop for milliseconds.
 
 This needs the server's connection object, which ASGI does not expose: `RawSockets` (middleware) puts
 the server's `send` in the WebSocket's scope, and `raw_socket` accepts it only for uvicorn's sans-I/O
@@ -63,13 +64,14 @@ def raw_socket(scope) -> RawSocket | None:
 
 
 class Framing:
-    """The WebSocket frame of the newest block, built once for all pages."""
+    """The WebSocket frame of the newest message of each kind (binary: a transform block, text: the state),
+    built once for all pages."""
 
     def __init__(self):
-        self._data: bytes | None = None
-        self._frame = b""
+        self._last: dict[Opcode, tuple[bytes, bytes]] = {}
 
-    def __call__(self, data: bytes) -> bytes:
-        if data is not self._data:
-            self._data, self._frame = data, Frame(Opcode.BINARY, data).serialize(mask=False)
-        return self._frame
+    def __call__(self, data: bytes, opcode: Opcode = Opcode.BINARY) -> bytes:
+        last = self._last.get(opcode)
+        if last is None or last[0] is not data:
+            last = self._last[opcode] = (data, Frame(opcode, data).serialize(mask=False))
+        return last[1]

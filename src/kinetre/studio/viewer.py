@@ -13,6 +13,7 @@ import json
 from dataclasses import dataclass, field
 
 from starlette.websockets import WebSocket, WebSocketDisconnect
+from websockets.frames import Opcode
 
 from .channels import Channels, Frame
 from .fanout import Framing, raw_socket
@@ -46,6 +47,7 @@ class Viewer:
         self.close_code: int | None = None  # how the connection ended (WebSocket close code)
         self.stats = ClientStats()
         self.sub = hub.subscribe(urgent=(TRANSFORMS, STATE, client_subject(client)))
+        self._sending = False  # the send loop is handing a message to the server (see `run`'s `direct`)
 
     async def run(self) -> None:
         """Greet the page, then serve it until it disconnects (`close_code` then says how)."""
@@ -61,12 +63,18 @@ class Viewer:
         raw = raw_socket(ws.scope)
         if raw is not None:
             def direct(frame: Frame) -> bool:
-                """A transform block written in the publisher's call when the page can take it now."""
-                if not is_transforms(frame.subject) or not raw.ready() or (
+                """A transform block or the state, written in the publisher's call when the page can take it
+                now and nothing sent before it is still on its way (so the page gets them in order)."""
+                transforms = is_transforms(frame.subject)
+                if not (transforms or frame.subject == STATE) or self._sending or not raw.ready() or (
                         stats.window and stats.sent - stats.acked >= stats.window):
                     return False  # send_loop delivers it (latest wins) once the page can take it
-                self._count_transforms(frame)
-                raw.write(self.framing(frame.data))
+                if transforms:
+                    self._count_transforms(frame)
+                    raw.write(self.framing(frame.data))
+                else:
+                    stats.sent += 1
+                    raw.write(self.framing(frame.data, Opcode.TEXT))
                 return True
             self.sub.direct = direct
         sender = asyncio.get_running_loop().create_task(self._send_loop())
@@ -142,18 +150,26 @@ class Viewer:
         stats, ws = self.stats, self.ws
         own = "." + self.client
         while True:
-            while stats.window and stats.sent - stats.acked >= stats.window:
+            if not await self.sub.pending():
+                return
+            # checked once a message waits: while this loop waited, messages may have gone out directly
+            if stats.window and stats.sent - stats.acked >= stats.window:
                 stats.ack.clear()
                 await stats.ack.wait()
-            frame = await self.sub.next()
+                continue
+            frame = self.sub.poll()
             if frame is None:
-                return
+                continue
             skeleton = frame.subject.startswith(SKELETON_PREFIX)
             if skeleton and (not stats.skeletons or frame.subject.endswith(own)):
                 continue  # other users' skeletons only for viewers that asked; a page draws its own
-            if is_transforms(frame.subject):
-                self._count_transforms(frame)
-                await ws.send_bytes(frame.data)
-            else:
-                stats.sent += 1  # counted before the await: an ack may arrive before the send returns
-                await ws.send_text(frame.data.decode())
+            self._sending = True
+            try:
+                if is_transforms(frame.subject):
+                    self._count_transforms(frame)
+                    await ws.send_bytes(frame.data)
+                else:
+                    stats.sent += 1  # counted before the await: an ack may arrive before the send returns
+                    await ws.send_text(frame.data.decode())
+            finally:
+                self._sending = False

@@ -139,8 +139,8 @@ class User:
     @property
     def cleaning(self) -> list[str]:
         """What cleans its body frames before the solve: "smoothing", "contact", both or neither."""
-        applied = LiveCleaner(KINECT20, self.cleanup).describe() if self.cleanup is not None else {}
-        return [k for k in ("smoothing", "contact") if k in applied]
+        c = self.cleanup
+        return [] if c is None else [k for k, on in (("smoothing", c.smooth), ("contact", c.contact)) if on]
 
     def _parse_raw(self) -> None:
         if self.raw is not None:
