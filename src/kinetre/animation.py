@@ -15,6 +15,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
+from .deform.energy import CARRIED, EnergyWeights
 from .deform.pose import GraphPose
 from .errors import BadSettingsError
 from .graph.graph import DeformationGraph
@@ -191,8 +192,9 @@ def animate(mesh: Mesh, take: Take, settings: AnimateSettings = AnimateSettings(
     bind = placed.frame(s.bind_frame)
     solver = SolverSettings() if s.solver is None else SolverSettings(method=s.solver)
     subset = list(s.subset) if isinstance(s.subset, tuple) else s.subset
-    rig = kinetre.attach(solve_graph, bind, subset=subset, settings=solver,
-                         node_bones=placement.method == "in place", rigid=True, mesh=placement.mesh(mesh))
+    in_place = placement.method == "in place"
+    rig = kinetre.attach(solve_graph, bind, subset=subset, settings=solver, node_bones=in_place, rigid=True,
+                         weights=CARRIED if in_place else EnergyWeights(), mesh=placement.mesh(mesh))
     step("attach")
     notes = notes + _attach_notes(take, rig, s.subset)
     lap("attach")

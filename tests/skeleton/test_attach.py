@@ -102,3 +102,30 @@ def test_nan_joint_drops_out(body, body_graph):
     pose = rig.solve(Skeleton(KINECT20, pos, s.tracked))
     assert np.all(np.isfinite(pose.translations))
     assert np.allclose(pose.node_matrices(body_graph.nodes)[:, :3, 3], [0.05, 0, 0], atol=1e-3)
+
+
+def test_a_standing_skeletons_bone_samples_pull_only_on_the_nodes_that_bone_carries():
+    """A leg (thigh and shin meeting at the knee, one piece of mesh): with node bones every node follows its
+    own bone, and a bone's cylinder samples near the knee must not also pull on the other bone's nodes."""
+    import trimesh
+
+    from kinetre.mesh.load import mesh_from_trimesh
+    from kinetre.skeleton.attach import attach_skeleton, nearest_bones
+    from kinetre.skeleton.models import SkeletonModel
+
+    leg = SkeletonModel("leg", ("hip", "knee", "ankle"), (-1, 0, 1))
+    pos = np.array([[0.0, 0.9, 0.0], [0.0, 0.45, 0.0], [0.0, 0.0, 0.0]])
+    box = trimesh.creation.box(bounds=[[-0.06, -0.02, -0.06], [0.06, 0.92, 0.06]]).subdivide_to_size(0.02)
+    mesh = mesh_from_trimesh(box, "leg")
+    graph = kinetre.build_graph(mesh, nodes=96)
+    skeleton = Skeleton(leg, pos, np.ones(3, bool))
+    att = attach_skeleton(graph, skeleton, np.ones(3, bool), node_bones=True)
+    carriers = nearest_bones(graph.nodes, skeleton, np.ones(3, bool))
+    assert set(carriers) == {0, 1}
+    node_rows = int((carriers >= 0).sum())  # one constraint per carried node, after the samples
+    samples = np.flatnonzero(att.bone[:len(att.bone) - node_rows] >= 0)
+    assert set(att.bone[samples]) == {0, 1}  # both bones have samples
+    c = att.constraints
+    for row in samples:
+        used = c.nodes[row][c.weights[row] > 0]
+        assert (carriers[used] == att.bone[row]).all(), (row, att.bone[row], carriers[used])

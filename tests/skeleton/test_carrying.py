@@ -1,5 +1,7 @@
 """A graph node takes the bone it sees from inside the mesh: a leg pushed up into the torso lies nearer to the
 belly than the spine does, but behind the leg's own skin, so the belly follows the spine."""
+import dataclasses
+
 import numpy as np
 
 import trimesh
@@ -40,3 +42,16 @@ def test_no_bone_may_carry_a_node_no_bone_is_allowed_for():
     graph = _graph([[0.5, 0.0, 0.5]], [[0.0, -1.0, 0.0]])
     got = carrying_bones(graph, skeleton, np.ones(4, bool), _torso_and_leg(), np.zeros((1, 3), bool))
     assert got.tolist() == [-1]
+
+
+def test_a_buried_node_keeps_a_bone_near_it_whatever_its_far_neighbours_hold():
+    """A node whose skin is folded into its own part cannot tell its bone from where it is and takes its graph
+    neighbours' bone, but only a bone near it: a coarse graph's edge to the far end of the spine does not make
+    the spine carry the paw."""
+    skeleton = Skeleton(BODY, BIND, np.ones(4, bool))
+    paw = [0.0, -0.85, 0.15]  # its skin, just inside it along the normal, lies inside the leg: buried
+    spine = [[-0.8, 0.95, 0.5], [-0.7, 0.95, -0.5]]  # the torso's skin over the spine's far end: seen clearly
+    graph = _graph([paw, *spine], [[0.0, 0.0, -1.0], [0.0, 0.0, 1.0], [0.0, 0.0, -1.0]])
+    graph = dataclasses.replace(graph, edges=np.array([[0, 1], [0, 2]], np.int32), bridges=np.zeros(2, bool))
+    got = carrying_bones(graph, skeleton, np.ones(4, bool), _torso_and_leg())
+    assert got.tolist() == [LEG, SPINE, SPINE]

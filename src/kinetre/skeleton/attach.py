@@ -120,7 +120,8 @@ def attach_skeleton(graph: DeformationGraph, skeleton: Skeleton, joint_mask: np.
     With `node_bones` every graph node also follows its bone (ours, for a skeleton that stands where the
     mesh's artist put it): a constraint at the node itself, moved as a bone sample, so parts beyond the bone
     cylinders' reach (a big head, a broad torso) are carried by their bone too. The bone is the one the node
-    sees from inside the mesh when `mesh` is given (`carrying_bones`), else the nearest.
+    sees from inside the mesh when `mesh` is given (`carrying_bones`), else the nearest; a bone's cylinder
+    samples are then carried by its own nodes only, so a leg's samples next to the hip do not drag the belly.
 
     Parameters
     ----------
@@ -144,6 +145,13 @@ def attach_skeleton(graph: DeformationGraph, skeleton: Skeleton, joint_mask: np.
     allowed = piece_bones(graph, skeleton, joint_mask, mesh) if node_bones else None
     # a skeleton standing where the artist put it carries the mesh by the bones the artist's skin follows
     carries = skeleton.model.skinning_bones if node_bones else np.ones(len(skeleton.model.bones), bool)
+    if node_bones:
+        # a joint outside the graph's box (a rig's helper, an IK pole target) carries none of the mesh
+        lo, hi = nodes.min(axis=0) - reach, nodes.max(axis=0) + reach
+        within = use & ((pos >= lo) & (pos <= hi)).all(axis=1)
+        mask = np.broadcast_to(carries, (len(nodes), len(carries))) if allowed is None else allowed[graph.pieces]
+        carriers = nearest_bones(nodes, skeleton, within, mask) if mesh is None else \
+            carrying_bones(graph, skeleton, within, mesh, mask)
     for j in np.flatnonzero(use):
         near = tree.query_ball_point(pos[j], reach)
         if not near:
@@ -164,18 +172,14 @@ def attach_skeleton(graph: DeformationGraph, skeleton: Skeleton, joint_mask: np.
             near = near[normals[near] @ n > 0.0]
             if allowed is not None:
                 near = near[allowed[graph.pieces[near], bi]]
+            if node_bones:  # a bone's samples pull only on the nodes it carries, not on a neighbour's beside it
+                near = near[carriers[near] == bi]
             if near.size == 0:
                 continue
             i, w = _carry(nodes, near, q, neighbours)
             points.append(q), idx.append(i), wts.append(w)
             joint_of.append(-1), bone_of.append(bi), offsets.append(q - pos[p])
     if node_bones:
-        # a joint outside the graph's box (a rig's helper, an IK pole target) carries none of the mesh
-        lo, hi = nodes.min(axis=0) - reach, nodes.max(axis=0) + reach
-        within = use & ((pos >= lo) & (pos <= hi)).all(axis=1)
-        mask = np.broadcast_to(carries, (len(nodes), len(carries))) if allowed is None else allowed[graph.pieces]
-        carriers = nearest_bones(nodes, skeleton, within, mask) if mesh is None else \
-            carrying_bones(graph, skeleton, within, mesh, mask)
         for j, bi in enumerate(carriers):
             if bi < 0:
                 continue

@@ -18,6 +18,9 @@ Characters", SIGGRAPH 2007, §4: a vertex binds to the nearest bone it can see f
    graph neighbours on the piece have, from the nodes that can;
 4. a node then takes the bone held by more than half of itself and its graph neighbours on its piece, so a
    lone node does not follow a part it merely touches.
+
+In 3 and 4 a node takes only a bone within FARTHEST times its nearest's distance: a coarse graph's edges can
+reach from a hand to the shoulder, and a neighbour's bone that far away cannot carry it.
 """
 from __future__ import annotations
 
@@ -74,8 +77,11 @@ def carrying_bones(graph: DeformationGraph, skeleton: Skeleton, joint_mask: np.n
     neighbours = graph.neighbours()
     if graph.pieces is not None and len(graph.pieces) == len(nodes):  # a piece's bones come from its own nodes
         neighbours = [n[graph.pieces[n] == graph.pieces[i]] for i, n in enumerate(neighbours)]
-    label = _from_neighbours(label, ~buried & has, neighbours)
-    label = _majority(label, neighbours, has)
+    # the bones near enough to carry each node (see 3 and 4 above)
+    near = np.zeros(cost.shape, bool)
+    near[has] = cost[has] <= FARTHEST * cost[has, order[has, 0]][:, None]
+    label = _from_neighbours(label, ~buried & has, neighbours, near)
+    label = _majority(label, neighbours, has, near)
     if allowed is not None:  # a neighbour's bone may be one this node's piece may not take
         label = np.where(allowed[np.arange(len(nodes)), rows[label]], label, best)
     return np.where(has, rows[label], -1)
@@ -139,27 +145,34 @@ def _buried(outside: np.ndarray, graph: DeformationGraph, mesh: Mesh) -> np.ndar
     return out
 
 
-def _from_neighbours(label: np.ndarray, known: np.ndarray, neighbours: list[np.ndarray]) -> np.ndarray:
-    """`label` with every node not `known` given the label most of its known neighbours hold, spreading out
-    from the known nodes ring by ring (a node no known node reaches keeps its own)."""
+def _from_neighbours(label: np.ndarray, known: np.ndarray, neighbours: list[np.ndarray],
+                     near: np.ndarray) -> np.ndarray:
+    """`label` with every node not `known` given the label most of its known neighbours hold among the bones
+    `near` it ((N, B) bool), spreading out from the known nodes ring by ring (a node no known node reaches, or
+    whose known neighbours hold no bone near it, keeps its own)."""
     label, known = label.copy(), known.copy()
     while True:
         todo = [i for i in np.flatnonzero(~known) if known[neighbours[i]].any()]
         if not todo:
             return label
-        new = {i: _most(label[neighbours[i][known[neighbours[i]]]]) for i in todo}
+        new = {}
+        for i in todo:
+            held = label[neighbours[i][known[neighbours[i]]]]
+            held = held[near[i, held]]
+            new[i] = _most(held) if held.size else label[i]
         for i, value in new.items():
             label[i] = value
             known[i] = True
 
 
-def _majority(label: np.ndarray, neighbours: list[np.ndarray], has: np.ndarray) -> np.ndarray:
-    """Every node with the label held by more than half of itself and its neighbours, where one is."""
+def _majority(label: np.ndarray, neighbours: list[np.ndarray], has: np.ndarray, near: np.ndarray) -> np.ndarray:
+    """Every node with the label held by more than half of itself and its neighbours, where one is and it is a
+    bone `near` the node."""
     out = label.copy()
     for i in np.flatnonzero(has):
         ring = np.append(label[neighbours[i]], label[i])
         values, counts = np.unique(ring, return_counts=True)
-        if 2 * counts.max() > len(ring):
+        if 2 * counts.max() > len(ring) and near[i, values[np.argmax(counts)]]:
             out[i] = values[np.argmax(counts)]
     return out
 
