@@ -27,7 +27,7 @@ class EnergyWeights:
 
 # A skeleton standing where the mesh's artist put it constrains every node by its bone (`attach_skeleton`'s node
 # bones), so E_reg need not fill in unconstrained nodes, only tie neighbours together: a stronger E_con keeps
-# each part on its own bone where parts meet (closer to the artist's skin on 19 of the fidelity bench's 21 clips).
+# each part on its own bone where parts meet.
 CARRIED = EnergyWeights(con=400.0)
 
 
