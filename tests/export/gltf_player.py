@@ -7,6 +7,9 @@ the glTF 2.0 specification tells a player to, with numpy only.
   key interval) samplers, clamped outside the keys;
 * a skinned primitive is  v' = sum_k w_k · W(joint_k) · IBM_k · v  in world space (the mesh node's own
   transform is ignored, as the specification says); an unskinned primitive follows its node's world matrix;
+* weights that do not sum to one (which the specification forbids and the Khronos validator reports as
+  ACCESSOR_WEIGHTS_NON_NORMALIZED) are divided by their sum, as three.js's GLTFLoader and Blender's armature
+  deform both do: without it such vertices are pulled toward the skeleton's origin, which no player shows;
 * morph targets add  sum_t weight_t · delta_t  before skinning; the weights come from the node, else the
   mesh, and are overridden by a `weights` channel.
 
@@ -56,6 +59,13 @@ class Piece:
     count: int
 
 
+def normalised(weights: np.ndarray) -> np.ndarray:
+    """(V, 4) skin weights divided by their sum; a vertex with none is bound to its first joint (three.js's
+    SkinnedMesh.normalizeSkinWeights)."""
+    total = weights.sum(axis=1, keepdims=True)
+    return np.where(total > 0, weights / np.where(total > 0, total, 1.0), np.eye(weights.shape[1])[0])
+
+
 class GltfFile:
     """A .glb/.gltf file posed at any time of any of its animations, every drawn primitive in world space."""
 
@@ -86,7 +96,8 @@ class GltfFile:
                                    for t in prim.targets]).astype(np.float64) if prim.targets else None
                 skinned = node.skin is not None and prim.attributes.JOINTS_0 is not None
                 joints = self.accessor(prim.attributes.JOINTS_0).astype(np.int64) if skinned else None
-                weights = self.accessor(prim.attributes.WEIGHTS_0).astype(np.float64) if skinned else None
+                weights = normalised(self.accessor(prim.attributes.WEIGHTS_0).astype(np.float64)) if skinned \
+                    else None
                 self._prims.append((pos, deltas, joints, weights))
                 self.pieces.append(Piece(i, node.mesh, k, start, len(pos)))
                 start += len(pos)
@@ -342,7 +353,7 @@ class GltfPlayer(GltfFile):
         self.primitive = prim
         self.positions = self.accessor(prim.attributes.POSITION).astype(np.float64)
         self.joints = self.accessor(prim.attributes.JOINTS_0).astype(np.int64)
-        self.weights = self.accessor(prim.attributes.WEIGHTS_0).astype(np.float64)
+        self.weights = normalised(self.accessor(prim.attributes.WEIGHTS_0).astype(np.float64))
         skin = d.skins[d.nodes[self.mesh_node].skin]
         self.skin_joints = list(skin.joints)
         self.inverse_bind = self.accessor(skin.inverseBindMatrices).reshape(-1, 4, 4).transpose(0, 2, 1)
