@@ -178,3 +178,27 @@ def test_a_vrma_kinetre_wrote_drives_an_avatar_again(tmp_path, data_dir, capsys)
     assert {"spine", "leftUpperLeg", "rightUpperLeg", "leftLowerArm", "rightLowerLeg"} <= set(names)
     assert err.max() < 1.0, dict(zip(names, err.max(axis=0).round(2)))
     assert np.allclose(load_take(first).hips_turns, load_take(second).hips_turns, atol=np.radians(1.0))
+
+
+def test_a_vrma_three_js_wrote_drives_an_avatar_as_kinetres_own_does(tmp_path, data_dir):
+    """.vrma from another tool: three-vrm's loader plays Kinetre's take on a humanoid of other proportions and
+    node names, three.js's GLTFExporter writes that as a new .vrma (tests/export/node/vrma_rewrite_three.mjs),
+    and driving the avatar with it points every limb where Kinetre's own file does, within 1°."""
+    from kinetre.motion.source import load_take
+    first, theirs, second = tmp_path / "first.vrma", tmp_path / "three.vrma", tmp_path / "second.vrma"
+    avatar = str(data_dir / "avatars" / "CesiumMan.glb")
+    assert main(["avatar", avatar, "--motion", str(data_dir / "bvh" / "cmu_12_01_walk.bvh"), "--max-frames", "16",
+                 "-o", str(first), "-q"]) == 0
+    if not (NODE / "node_modules" / "@pixiv" / "three-vrm-animation").is_dir():
+        raise RuntimeError(f"three-vrm is not installed: run `npm ci` in {NODE} (make setup does)")
+    subprocess.run(["node", str(NODE / "vrma_rewrite_three.mjs"), str(first), str(theirs)], capture_output=True,
+                   text=True, timeout=300, check=True)
+    assert validate_gltf(theirs)["issues"]["numErrors"] == 0
+    take = load_take(theirs)
+    assert take.model.name == "kinect20" and len(take) == 16 and take.tracked.all()
+    assert main(["avatar", avatar, "--motion", str(theirs), "-o", str(second), "-q"]) == 0
+    a, names = bone_directions(first)
+    b, _ = bone_directions(second)
+    assert np.degrees(np.arccos(np.clip((a[0] * a[-1]).sum(axis=1), -1.0, 1.0))).max() > 10.0  # the limbs move
+    err = np.degrees(np.arccos(np.clip((a * b).sum(axis=2), -1.0, 1.0)))
+    assert err.max() < 1.0, dict(zip(names, err.max(axis=0).round(2)))
