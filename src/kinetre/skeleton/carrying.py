@@ -19,8 +19,8 @@ Characters", SIGGRAPH 2007, §4: a vertex binds to the nearest bone it can see f
 4. a node then takes the bone held by more than half of itself and its graph neighbours on its piece, so a
    lone node does not follow a part it merely touches.
 
-In 3 and 4 a node takes only a bone within FARTHEST times its nearest's distance: a coarse graph's edges can
-reach from a hand to the shoulder, and a neighbour's bone that far away cannot carry it.
+As in 1, in 3 and 4 a node takes only a bone within FARTHEST times its nearest's distance: a coarse graph's
+edges can reach from a hand to the shoulder, and a neighbour's bone that far away cannot carry it.
 """
 from __future__ import annotations
 
@@ -71,15 +71,15 @@ def carrying_bones(graph: DeformationGraph, skeleton: Skeleton, joint_mask: np.n
         nearest = np.linalg.norm(nodes[:, None] - closest, axis=2)
         nearest = np.where(np.isfinite(cost), nearest, np.inf).argmin(axis=1)
         return np.where(has, rows[nearest], -1)
-    label = _visible_bones(nodes, closest, cost, order, mesh.vertices, faces)
+    # the bones near enough to carry each node, seen (1) or taken from neighbours (3, 4)
+    near = np.zeros(cost.shape, bool)
+    near[has] = cost[has] <= FARTHEST * cost[has, order[has, 0]][:, None]
+    label = _visible_bones(nodes, closest, near, order, mesh.vertices, faces)
     size = float(np.max(np.ptp(mesh.vertices, axis=0))) if len(mesh.vertices) else 0.0
     buried = _buried(nodes + OUTSIDE * size * graph.normals, graph, mesh)
     neighbours = graph.neighbours()
     if graph.pieces is not None and len(graph.pieces) == len(nodes):  # a piece's bones come from its own nodes
         neighbours = [n[graph.pieces[n] == graph.pieces[i]] for i, n in enumerate(neighbours)]
-    # the bones near enough to carry each node (see 3 and 4 above)
-    near = np.zeros(cost.shape, bool)
-    near[has] = cost[has] <= FARTHEST * cost[has, order[has, 0]][:, None]
     label = _from_neighbours(label, ~buried & has, neighbours, near)
     label = _majority(label, neighbours, has, near)
     if allowed is not None:  # a neighbour's bone may be one this node's piece may not take
@@ -100,10 +100,10 @@ def bone_costs(points: np.ndarray, a: np.ndarray, b: np.ndarray) -> tuple[np.nda
     return np.sqrt(radial ** 2 + (PAST_END * along) ** 2), closest
 
 
-def _visible_bones(nodes, closest, cost, order, vertices, faces) -> np.ndarray:
-    """(N,) column of `cost` per node: its cheapest bone seen without crossing a surface, else the cheapest
-    reached through the inside, else the cheapest. Bones are tried cheapest first, each node's only until one
-    is seen clearly, within BUDGET point-triangle pairs."""
+def _visible_bones(nodes, closest, near, order, vertices, faces) -> np.ndarray:
+    """(N,) column of `order`'s costs per node: its cheapest bone seen without crossing a surface, else the
+    cheapest reached through the inside, else the cheapest. Bones are tried cheapest first, only those `near`
+    the node ((N, B) bool), each node's only until one is seen clearly, within BUDGET point-triangle pairs."""
     n = len(nodes)
     clear = np.full(n, -1)
     through = np.full(n, -1)
@@ -111,7 +111,7 @@ def _visible_bones(nodes, closest, cost, order, vertices, faces) -> np.ndarray:
     spent = 0
     for k in range(order.shape[1]):
         col = order[pending, k]
-        live = np.isfinite(cost[pending, col]) & (cost[pending, col] <= FARTHEST * cost[pending, order[pending, 0]])
+        live = near[pending, col]
         pending, col = pending[live], col[live]
         spent += len(pending) * PER_PATH * len(faces)
         if not len(pending) or (k and spent > BUDGET):
@@ -172,8 +172,9 @@ def _majority(label: np.ndarray, neighbours: list[np.ndarray], has: np.ndarray, 
     for i in np.flatnonzero(has):
         ring = np.append(label[neighbours[i]], label[i])
         values, counts = np.unique(ring, return_counts=True)
-        if 2 * counts.max() > len(ring) and near[i, values[np.argmax(counts)]]:
-            out[i] = values[np.argmax(counts)]
+        top = values[np.argmax(counts)]
+        if 2 * counts.max() > len(ring) and near[i, top]:
+            out[i] = top
     return out
 
 
